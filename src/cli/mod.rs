@@ -1,0 +1,45 @@
+//! The `geodex` command line: `serve` (the default), `distance` and `bench`.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::config::ServeArgs;
+
+/// geodex: geodesic distances, minimal paths and segmentations.
+#[derive(Debug, Parser)]
+#[command(name = "geodex", version, about)]
+pub struct Cli {
+    /// What to do; `serve` when omitted.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the HTTP service (the default).
+    Serve(ServeArgs),
+}
+
+/// Entry point of the binary.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Serve(args)) => crate::app::serve(args),
+        None => match Cli::try_parse_from(["geodex", "serve"]) {
+            Ok(Cli {
+                command: Some(Command::Serve(args)),
+            }) => crate::app::serve(args),
+            Ok(_) => Ok(()),
+            Err(e) => e.exit(),
+        },
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("geodex: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

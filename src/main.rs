@@ -1,0 +1,5 @@
+//! The `geodex` binary: see [`geodex::cli`].
+
+fn main() -> std::process::ExitCode {
+    geodex::cli::main()
+}

@@ -1,0 +1,1 @@
+//! Indexed binary min-heap with decrease-key: the narrow band of fast marching.

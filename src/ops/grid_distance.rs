@@ -1,0 +1,536 @@
+//! `grid.distance`: the geodesic distance map `U` (and Voronoi labels) of an
+//! isotropic cost on a 2D or 3D grid.
+//!
+//! Coordinates are in array index order (axis 0 first) and in index units;
+//! physical lengths are index offsets times the per-axis `spacing`.
+
+use std::borrow::Cow;
+use std::time::Instant;
+
+use ndarray::ArrayD;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::{InputArray, Inputs, OpError, OpLimits};
+use crate::numerics::eikonal::{
+    Connectivity, EikonalError, EikonalOptions, EikonalProblem, Method, Order, Source, StopReason,
+    StopRules,
+};
+use crate::numerics::metric::{CostValues, Interpretation, IsotropicCost, MetricError};
+use crate::numerics::{self, Control, Grid, GridError};
+
+/// Request of `grid.distance` (`POST /v1/grid/distance`, job operation
+/// `grid.distance`, and `geodex distance` on the command line).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "cost": {"constant": 1.0, "shape": [256, 256]},
+    "sources": [{"point": [128.0, 128.0]}],
+    "method": "fast_marching",
+    "order": 2
+}))]
+pub struct GridDistanceRequest {
+    /// The metric: a cost (or speed) dataset, or a constant over a shape.
+    pub cost: CostSpec,
+    /// Physical size of a cell along each axis (axis 0 first). Default: the
+    /// spacing stored with the cost dataset (NIfTI voxel size), else 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub spacing: Option<Vec<f64>>,
+    /// Id of a dataset of the same shape whose non-zero cells are obstacles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacles: Option<String>,
+    /// The sources. The Voronoi label of a cell is the index of the source
+    /// that reaches it first, in this list.
+    #[schema(min_items = 1)]
+    pub sources: Vec<SourceSpec>,
+    /// The solver. Default: `fast_marching`.
+    #[serde(default)]
+    pub method: MethodSpec,
+    /// Order of the finite-difference scheme, 1 or 2. Default: 2.
+    #[serde(default = "default_order")]
+    #[schema(minimum = 1, maximum = 2)]
+    pub order: u8,
+    /// Source factoring around point sources (fast marching). Default: true.
+    #[serde(default = "default_true")]
+    pub factoring: bool,
+    /// Graph neighbourhood of `dijkstra`. Default: `diagonal`.
+    #[serde(default)]
+    pub connectivity: ConnectivitySpec,
+    /// Early stopping rules.
+    #[serde(default)]
+    pub stop: StopSpec,
+    /// Which arrays to return besides the distance.
+    #[serde(default)]
+    pub outputs: OutputSpec,
+}
+
+fn default_order() -> u8 {
+    2
+}
+
+fn default_true() -> bool {
+    true
+}
+
+/// The cost `W` (cost per unit length, > 0) or speed `F = 1/W`. Give either
+/// `dataset` or `constant` with `shape`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CostSpec {
+    /// Id of a 2D or 3D dataset holding one value per cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dataset: Option<String>,
+    /// A constant value on every cell.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constant: Option<f64>,
+    /// Grid shape (2 or 3 axes) for a constant cost.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub shape: Option<Vec<usize>>,
+    /// Whether the values are a cost `W` (default) or a speed `F = 1/W`.
+    #[serde(default)]
+    pub interpretation: InterpretationSpec,
+}
+
+/// How to read the values of the cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum InterpretationSpec {
+    /// Cost per unit length `W`: +inf marks a wall, NaN and values <= 0 are refused.
+    #[default]
+    Cost,
+    /// Speed `F = 1/W`: 0 marks a wall, NaN, negative and infinite values are refused.
+    Speed,
+}
+
+/// One source: give `point`, or `cells` (with optional `values`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSpec {
+    /// A point in index coordinates (axis 0 first), possibly between cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub point: Option<Vec<f64>>,
+    /// Cells (index triples or pairs, axis 0 first) that start with a given value.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cells: Option<Vec<Vec<usize>>>,
+    /// Initial values of `cells` (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub values: Option<Vec<f64>>,
+}
+
+/// The solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MethodSpec {
+    /// Fast marching, first or second order.
+    #[default]
+    FastMarching,
+    /// Fast sweeping (Gauss–Seidel sweeps).
+    FastSweeping,
+    /// Dijkstra on the grid graph (metrication error, see `connectivity`).
+    Dijkstra,
+}
+
+/// Grid-graph neighbourhood for `dijkstra`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ConnectivitySpec {
+    /// 4 neighbours in 2D, 6 in 3D (worst-case length error 41.4 %).
+    Axial,
+    /// 8 neighbours in 2D, 18 in 3D (8.2 % in 2D).
+    #[default]
+    Diagonal,
+    /// 16 neighbours in 2D, 26 in 3D (2.79 % in 2D).
+    Extended,
+}
+
+/// Early stopping. Cells not computed keep `+inf` and label `-1`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StopSpec {
+    /// Stop once all these points (index coordinates) have their final value.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub targets: Vec<Vec<f64>>,
+    /// Stop once the front passes this geodesic distance (a geodesic ball).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0.0)]
+    pub max_distance: Option<f64>,
+    /// Stop after this many cells have their final value.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_frozen: Option<u64>,
+}
+
+/// Optional outputs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Return the Voronoi labels (int32, -1 where not reached). Default: true.
+    #[serde(default = "default_true")]
+    pub labels: bool,
+    /// Return the rank at which each cell was frozen (int64, -1 if never). Default: false.
+    #[serde(default)]
+    pub frozen_order: bool,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self {
+            labels: true,
+            frozen_order: false,
+        }
+    }
+}
+
+/// What a solve reports besides its arrays.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SolveStats {
+    /// Cells in the grid.
+    pub cells: u64,
+    /// Cells with a final value.
+    pub frozen: u64,
+    /// How the solve ended: `completed`, `targets_reached`, `max_distance`, `max_frozen` or `sweep_limit`.
+    pub stop: String,
+    /// Single sweeps done (fast sweeping only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sweeps: Option<u64>,
+    /// Wall time of the solve alone, in seconds.
+    pub solve_seconds: f64,
+}
+
+/// The arrays and statistics of a solve.
+#[derive(Debug, Clone)]
+pub struct GridDistanceResult {
+    /// The distance `U` (f64, `+inf` where not reached).
+    pub distance: ArrayD<f64>,
+    /// Voronoi labels, when asked for.
+    pub labels: Option<ArrayD<i32>>,
+    /// Freeze ranks, when asked for.
+    pub frozen_order: Option<ArrayD<i64>>,
+    /// The spacing that was used.
+    pub spacing: Vec<f64>,
+    /// Statistics.
+    pub stats: SolveStats,
+}
+
+impl GridDistanceRequest {
+    /// The dataset ids this request reads, with the field that names each.
+    pub fn dataset_ids(&self) -> Vec<(&'static str, &str)> {
+        let mut ids = Vec::new();
+        if let Some(id) = &self.cost.dataset {
+            ids.push(("cost.dataset", id.as_str()));
+        }
+        if let Some(id) = &self.obstacles {
+            ids.push(("obstacles", id.as_str()));
+        }
+        ids
+    }
+
+    /// Checks everything that does not need the input arrays, so that a
+    /// request can be refused before it is queued.
+    pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        match (&self.cost.dataset, self.cost.constant, &self.cost.shape) {
+            (Some(_), None, None) => {}
+            (None, Some(c), Some(shape)) => {
+                if !(c.is_finite() && c > 0.0) {
+                    return Err(OpError::invalid(
+                        "cost.constant",
+                        format!("{c} must be finite and > 0"),
+                    ));
+                }
+                check_shape(shape, "cost.shape", limits)?;
+            }
+            (Some(_), _, _) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "give either `dataset`, or `constant` with `shape`, not both",
+                ))
+            }
+            (None, Some(_), None) => {
+                return Err(OpError::invalid(
+                    "cost.shape",
+                    "a constant cost needs the grid shape",
+                ))
+            }
+            (None, None, _) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "give either `dataset`, or `constant` with `shape`",
+                ))
+            }
+        }
+        if self.sources.is_empty() {
+            return Err(OpError::invalid(
+                "sources",
+                "at least one source is required",
+            ));
+        }
+        if self.sources.len() > limits.max_sources {
+            return Err(OpError::TooLarge {
+                field: "sources".into(),
+                reason: format!(
+                    "{} sources, more than the limit of {}",
+                    self.sources.len(),
+                    limits.max_sources
+                ),
+            });
+        }
+        for (i, s) in self.sources.iter().enumerate() {
+            match (&s.point, &s.cells) {
+                (Some(p), None) => {
+                    if s.values.is_some() {
+                        return Err(OpError::invalid(
+                            format!("sources[{i}].values"),
+                            "values go with `cells`, not with `point`",
+                        ));
+                    }
+                    if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+                        return Err(OpError::invalid(
+                            format!("sources[{i}].point[{k}]"),
+                            "coordinates must be finite",
+                        ));
+                    }
+                }
+                (None, Some(_)) => {}
+                _ => {
+                    return Err(OpError::invalid(
+                        format!("sources[{i}]"),
+                        "give exactly one of `point` or `cells`",
+                    ))
+                }
+            }
+        }
+        if !(1..=2).contains(&self.order) {
+            return Err(OpError::invalid(
+                "order",
+                format!("{} must be 1 or 2", self.order),
+            ));
+        }
+        if let Some(d) = self.stop.max_distance {
+            if d.is_nan() || d < 0.0 {
+                return Err(OpError::invalid(
+                    "stop.max_distance",
+                    format!("{d} must be >= 0"),
+                ));
+            }
+        }
+        if let Some(spacing) = &self.spacing {
+            if let Some(k) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
+                return Err(OpError::invalid(
+                    format!("spacing[{k}]"),
+                    format!("{} must be finite and > 0", spacing[k]),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The core options this request asks for.
+    pub fn options(&self) -> EikonalOptions {
+        let mut o = EikonalOptions::DEFAULT
+            .with_method(match self.method {
+                MethodSpec::FastMarching => Method::FastMarching,
+                MethodSpec::FastSweeping => Method::FastSweeping,
+                MethodSpec::Dijkstra => Method::Dijkstra,
+            })
+            .with_order(if self.order == 1 {
+                Order::First
+            } else {
+                Order::Second
+            })
+            .with_factoring(self.factoring)
+            .with_connectivity(match self.connectivity {
+                ConnectivitySpec::Axial => Connectivity::Axial,
+                ConnectivitySpec::Diagonal => Connectivity::Diagonal,
+                ConnectivitySpec::Extended => Connectivity::Extended,
+            })
+            .with_stop(StopRules {
+                targets: self.stop.targets.clone(),
+                max_distance: self.stop.max_distance,
+                max_frozen: self.stop.max_frozen.map(|n| n as usize),
+            });
+        o.record_order = self.outputs.frozen_order;
+        o
+    }
+}
+
+fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), OpError> {
+    if !(2..=3).contains(&shape.len()) {
+        return Err(OpError::invalid(
+            field,
+            format!("the grid must be 2D or 3D, got {} axes", shape.len()),
+        ));
+    }
+    if let Some(k) = shape.iter().position(|&n| n == 0) {
+        return Err(OpError::invalid(
+            format!("{field}[{k}]"),
+            "an axis has length 0",
+        ));
+    }
+    let cells = shape.iter().map(|&n| n as u128).product::<u128>();
+    if cells > limits.max_cells as u128 {
+        return Err(OpError::TooLarge {
+            field: field.into(),
+            reason: format!("{cells} cells, more than the limit of {}", limits.max_cells),
+        });
+    }
+    Ok(())
+}
+
+/// Runs `grid.distance`: validates, resolves the datasets through `inputs`,
+/// calls the core and packages the result.
+pub fn execute(
+    req: &GridDistanceRequest,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<GridDistanceResult, OpError> {
+    req.validate(limits)?;
+    let lookup = |field: &str, id: &str| -> Result<InputArray, OpError> {
+        inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
+            field: field.into(),
+            id: id.into(),
+        })
+    };
+    let cost_input = match &req.cost.dataset {
+        Some(id) => Some(lookup("cost.dataset", id)?),
+        None => None,
+    };
+    let shape: Vec<usize> = match (&cost_input, &req.cost.shape) {
+        (Some(input), _) => {
+            let shape = input.array.shape().to_vec();
+            check_shape(&shape, "cost.dataset", limits)?;
+            shape
+        }
+        (None, Some(shape)) => shape.clone(),
+        (None, None) => return Err(OpError::invalid("cost.shape", "missing")),
+    };
+    let spacing = req
+        .spacing
+        .clone()
+        .or_else(|| cost_input.as_ref().and_then(|c| c.spacing.clone()))
+        .unwrap_or_else(|| vec![1.0; shape.len()]);
+    let grid = Grid::new(&shape, &spacing).map_err(|e| grid_error(e, &shape))?;
+
+    let mask_input = match &req.obstacles {
+        Some(id) => Some(lookup("obstacles", id)?),
+        None => None,
+    };
+    let mask = match &mask_input {
+        Some(m) => {
+            if m.array.shape() != shape.as_slice() {
+                return Err(OpError::invalid(
+                    "obstacles",
+                    format!(
+                        "the mask has shape {:?} but the grid has shape {:?}",
+                        m.array.shape(),
+                        shape
+                    ),
+                ));
+            }
+            Some(Cow::Owned(m.array.to_mask()))
+        }
+        None => None,
+    };
+    let interpretation = match req.cost.interpretation {
+        InterpretationSpec::Cost => Interpretation::Cost,
+        InterpretationSpec::Speed => Interpretation::Speed,
+    };
+    let values = match (&cost_input, req.cost.constant) {
+        (Some(input), _) => input.array.as_cost_values().ok_or_else(|| {
+            OpError::invalid(
+                "cost.dataset",
+                format!("a {:?} array cannot be a cost", input.array.dtype()),
+            )
+        })?,
+        (None, Some(c)) => CostValues::Constant(c),
+        (None, None) => return Err(OpError::invalid("cost", "missing")),
+    };
+    let cost = IsotropicCost::new(&grid, values, interpretation, mask)
+        .map_err(|e| metric_error(e, cost_input.is_some()))?;
+    let sources = req
+        .sources
+        .iter()
+        .map(|s| match (&s.point, &s.cells) {
+            (Some(p), _) => Source::Point(p.clone()),
+            (None, Some(c)) => Source::Cells {
+                cells: c.clone(),
+                values: s.values.clone(),
+            },
+            (None, None) => Source::Point(Vec::new()),
+        })
+        .collect();
+    let problem = EikonalProblem {
+        grid,
+        cost,
+        sources,
+    };
+    let started = Instant::now();
+    let out = numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?;
+    let solve_seconds = started.elapsed().as_secs_f64();
+    Ok(GridDistanceResult {
+        stats: SolveStats {
+            cells: problem.grid.len() as u64,
+            frozen: out.frozen as u64,
+            stop: stop_name(out.stop).into(),
+            sweeps: out.sweeps.map(|s| s as u64),
+            solve_seconds,
+        },
+        labels: req.outputs.labels.then_some(out.labels),
+        frozen_order: out.frozen_order,
+        distance: out.distance,
+        spacing,
+    })
+}
+
+/// The wire name of a stop reason.
+pub fn stop_name(stop: StopReason) -> &'static str {
+    match stop {
+        StopReason::Completed => "completed",
+        StopReason::TargetsReached => "targets_reached",
+        StopReason::MaxDistance => "max_distance",
+        StopReason::MaxFrozen => "max_frozen",
+        StopReason::SweepLimit => "sweep_limit",
+    }
+}
+
+fn grid_error(e: GridError, shape: &[usize]) -> OpError {
+    match e {
+        GridError::Spacing { axis, .. } => {
+            OpError::invalid(format!("spacing[{axis}]"), e.to_string())
+        }
+        GridError::SpacingLength { .. } => OpError::invalid("spacing", e.to_string()),
+        GridError::TooLarge(_) => OpError::TooLarge {
+            field: "cost".into(),
+            reason: e.to_string(),
+        },
+        _ => OpError::invalid("cost", format!("{e} (shape {shape:?})")),
+    }
+}
+
+fn metric_error(e: MetricError, from_dataset: bool) -> OpError {
+    let field = match e {
+        MetricError::MaskLength { .. } => "obstacles",
+        MetricError::Constant(_) => "cost.constant",
+        _ if from_dataset => "cost.dataset",
+        _ => "cost",
+    };
+    OpError::invalid(field, e.to_string())
+}
+
+fn eikonal_error(e: EikonalError) -> OpError {
+    match e {
+        EikonalError::Cancelled => OpError::Cancelled,
+        EikonalError::Source { index, reason } => {
+            OpError::invalid(format!("sources[{index}]"), reason)
+        }
+        EikonalError::Target { index, reason } => {
+            OpError::invalid(format!("stop.targets[{index}]"), reason)
+        }
+        EikonalError::NoSources => OpError::invalid("sources", e.to_string()),
+        EikonalError::Option { field, reason } => OpError::invalid(field, reason),
+        EikonalError::Grid(g) => OpError::invalid("cost", g.to_string()),
+        EikonalError::Metric(m) => OpError::invalid("cost", m.to_string()),
+    }
+}
