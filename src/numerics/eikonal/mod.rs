@@ -20,6 +20,9 @@
 //! * [`Method::Dijkstra`]: shortest paths on the grid graph, the graph
 //!   baseline, with metrication error (see [`Connectivity`]).
 
+mod dijkstra;
+mod fast_marching;
+mod fast_sweeping;
 mod sources;
 
 pub use sources::{nearest_cell, target_cells, InitialFront, SeedCell, SeedPoint};
@@ -287,11 +290,40 @@ pub fn solve(
 ) -> Result<EikonalOutput, EikonalError> {
     validate_options(options)?;
     let front = InitialFront::build(problem, options.source_radius)?;
-    let _ = (front, control);
-    Err(EikonalError::Option {
-        field: "method",
-        reason: "not implemented yet".into(),
-    })
+    match options.method {
+        Method::FastMarching => fast_marching::solve(problem, &front, options, control),
+        Method::FastSweeping => fast_sweeping::solve(problem, &front, options, control),
+        Method::Dijkstra => dijkstra::solve(problem, &front, options, control),
+    }
+}
+
+/// Packages the flat (C-order) working arrays of a solver as an [`EikonalOutput`]
+/// in the caller's shape.
+#[allow(dead_code)] // Used by every solver; remove once they land.
+pub(crate) fn finish(
+    grid: &Grid,
+    distance: Vec<f64>,
+    labels: Vec<i32>,
+    frozen_order: Option<Vec<i64>>,
+    frozen: usize,
+    stop: StopReason,
+    sweeps: Option<usize>,
+) -> EikonalOutput {
+    let shape = ndarray::IxDyn(grid.shape());
+    let reshape = |v: Vec<f64>| ArrayD::from_shape_vec(shape.clone(), v);
+    // The lengths are the grid's by construction; a mismatch is a solver bug.
+    let distance = reshape(distance).expect("solver produced one distance per cell");
+    let labels = ArrayD::from_shape_vec(shape.clone(), labels).expect("one label per cell");
+    let frozen_order =
+        frozen_order.map(|o| ArrayD::from_shape_vec(shape.clone(), o).expect("one rank per cell"));
+    EikonalOutput {
+        distance,
+        labels,
+        frozen_order,
+        frozen,
+        stop,
+        sweeps,
+    }
 }
 
 fn validate_options(options: &EikonalOptions) -> Result<(), EikonalError> {
