@@ -24,6 +24,7 @@ mod dijkstra;
 mod fast_marching;
 mod fast_sweeping;
 mod sources;
+mod update;
 
 pub use sources::{nearest_cell, target_cells, InitialFront, SeedCell, SeedPoint};
 
@@ -120,9 +121,10 @@ pub struct EikonalOptions {
     pub method: Method,
     /// Scheme order (fast marching, fast sweeping). Default: second.
     pub order: Order,
-    /// Static source factoring for point sources (fast marching, order 2):
-    /// the scheme solves for `U / U_0` with `U_0 = W(p)|x - p|`, which removes
-    /// the singularity of `U` at `p`. Default: true.
+    /// Additive source factoring for point sources (fast marching and fast
+    /// sweeping, both orders, on the whole domain): the scheme solves for
+    /// `V = U - U_0` with `U_0 = W(p)|x - p|`, which removes the singularity
+    /// of `U` at `p` (exact for a constant cost). Default: true.
     pub factoring: bool,
     /// Radius, in cells, around a point source inside which cells receive the
     /// exact local value `W(p)|x - p|`. Default: 1.5.
@@ -299,7 +301,6 @@ pub fn solve(
 
 /// Packages the flat (C-order) working arrays of a solver as an [`EikonalOutput`]
 /// in the caller's shape.
-#[allow(dead_code)] // Used by every solver; remove once they land.
 pub(crate) fn finish(
     grid: &Grid,
     distance: Vec<f64>,
