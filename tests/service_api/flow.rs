@@ -119,6 +119,24 @@ async fn upload_distance_download_equals_the_core_bit_for_bit() {
         Some(distance.as_slice().expect("std")[0])
     );
 
+    // The other representations.
+    for (format, magic, media) in [
+        ("png", &b"\x89PNG"[..], "image/png"),
+        ("png16", &b"\x89PNG"[..], "image/png"),
+        ("tiff", &b"II*\0"[..], "image/tiff"),
+    ] {
+        let res = app
+            .client
+            .get(app.url(&format!("{url}?format={format}")))
+            .send()
+            .await
+            .expect("get");
+        assert_eq!(res.status(), 200, "{format}");
+        assert_eq!(res.headers()["content-type"], media);
+        let bytes = res.bytes().await.expect("bytes");
+        assert!(bytes.starts_with(magic), "{format}");
+    }
+
     // Delete: 204, then 404.
     let res = app
         .client
@@ -159,7 +177,7 @@ async fn multipart_one_round_trip_returns_npy() {
         .send()
         .await
         .expect("post");
-    assert_eq!(res.status(), 200);
+    assert_eq!(res.status(), 200, "{:?}", res.text().await);
     assert_eq!(res.headers()["content-type"], "application/x-npy");
     let bytes = res.bytes().await.expect("bytes");
     let got = io::decode(&bytes, Some(Format::Npy), &Limits::default())

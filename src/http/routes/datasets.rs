@@ -104,22 +104,8 @@ pub fn format_from_content_type(headers: &HeaderMap) -> Result<Option<Format>, A
     let Some(ct) = headers.get(header::CONTENT_TYPE) else {
         return Ok(None);
     };
-    let ct = ct.to_str().unwrap_or("").to_ascii_lowercase();
-    let essence = ct.split(';').next().unwrap_or("").trim();
-    Ok(match essence {
-        "image/png" => Some(Format::Png),
-        "image/jpeg" | "image/jpg" => Some(Format::Jpeg),
-        "image/tiff" => Some(Format::Tiff),
-        "application/x-npy" | "application/npy" => Some(Format::Npy),
-        "application/x-nifti" | "application/nifti" => Some(Format::Nifti),
-        "application/gzip" | "application/x-gzip" | "application/octet-stream" | "" => None,
-        other => {
-            return Err(ApiError::unsupported_media_type(format!(
-                "{other} is not an accepted upload type; send image/png, image/jpeg, image/tiff, \
-                 application/x-npy, application/x-nifti, application/gzip or application/octet-stream"
-            )))
-        }
-    })
+    Format::from_media_type(ct.to_str().unwrap_or("?"))
+        .map_err(|e| ApiError::unsupported_media_type(e.to_string()))
 }
 
 /// Decodes uploaded bytes off the async threads and checks that the array is
@@ -315,10 +301,16 @@ pub fn encode(
     let encoded = match format {
         OutputFormat::Npy => io::encode_npy(array).map(|b| (b, "application/x-npy")),
         OutputFormat::Json => return to_json(array).map(|b| (b, "application/json")),
-        OutputFormat::Tiff | OutputFormat::Png16 | OutputFormat::Png => {
-            return Err(ApiError::not_acceptable(format!(
-                "{format:?} output is not available in this build; use npy or json"
-            )))
+        OutputFormat::Tiff => io::encode_tiff_f32(array).map(|b| (b, "image/tiff")),
+        OutputFormat::Png16 => io::encode_png16(array, None).map(|b| (b, "image/png")),
+        OutputFormat::Png => {
+            // Float fields (distance maps) get iso-value lines; labels are categorical.
+            let iso = matches!(array, ArrayData::F64(_) | ArrayData::F32(_));
+            let options = io::RenderOptions {
+                iso_lines: iso.then_some(io::IsoLines::Count(10)),
+                ..Default::default()
+            };
+            io::render_png(array, &options).map(|b| (b, "image/png"))
         }
     };
     encoded.map_err(|e| ApiError::not_acceptable(format!("cannot encode this array: {e}")))

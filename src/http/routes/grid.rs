@@ -152,6 +152,7 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
             match field.name().unwrap_or("") {
                 "params" => {
                     let bytes = field.bytes().await.map_err(multipart_error)?;
+                    let bytes = with_file_cost(&bytes);
                     let parsed = axum::Json::<GridDistanceRequest>::from_bytes(&bytes)
                         .map_err(|e| prefix_field(json_rejection(e), "params"))?;
                     params = Some(parsed.0);
@@ -178,6 +179,24 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
         })?;
         Ok(Self { params, file })
     }
+}
+
+/// In a form, `cost` may be omitted (or lack `dataset` and `constant`): it
+/// then names the `file` part. Anything that is not a JSON object is left for
+/// the parser to refuse.
+fn with_file_cost(bytes: &[u8]) -> Vec<u8> {
+    let Ok(serde_json::Value::Object(mut params)) = serde_json::from_slice(bytes) else {
+        return bytes.to_vec();
+    };
+    let cost = params
+        .entry("cost")
+        .or_insert_with(|| serde_json::Value::Object(Default::default()));
+    if let serde_json::Value::Object(cost) = cost {
+        if !cost.contains_key("dataset") && !cost.contains_key("constant") {
+            cost.insert("dataset".into(), FILE_ID.into());
+        }
+    }
+    serde_json::to_vec(&params).unwrap_or_else(|_| bytes.to_vec())
 }
 
 fn prefix_field(mut e: ApiError, prefix: &str) -> ApiError {
@@ -265,10 +284,7 @@ pub async fn distance(
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
     let direct = wants_npy(&query, &headers);
-    let DistanceBody { mut params, file } = body;
-    if file.is_some() && params.cost.dataset.is_none() && params.cost.constant.is_none() {
-        params.cost.dataset = Some(FILE_ID.into());
-    }
+    let DistanceBody { params, file } = body;
     params.validate(&state.op_limits)?;
 
     let mut inputs: HashMap<String, InputArray> = HashMap::new();
