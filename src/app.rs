@@ -191,8 +191,12 @@ pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
         .enable_all()
         .build()
         .context("starting the async runtime")?;
-    runtime.block_on(async move {
+    let result = runtime.block_on(async move {
         let app = Application::build(args).await?;
         app.run_until_stopped().await
-    })
+    });
+    // Idle blocking-pool threads would otherwise keep the process alive a few seconds.
+    runtime.shutdown_timeout(Duration::from_secs(1));
+    tracing::info!("stopped");
+    result
 }

@@ -264,3 +264,70 @@ async fn bad_costs_and_sources_are_422_naming_the_field() {
     .await;
     assert_eq!(v["field"], "sources[0]");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn quota_expiry_and_representations() {
+    // A quota that holds one 64 x 64 f64 array (32 KiB + header) but not two.
+    let app = spawn(|s| {
+        s.storage_quota_bytes = 40_000;
+        s.dataset_ttl_secs = 1;
+    })
+    .await;
+    let cost = ArrayData::F64(wavy_cost(64, 64));
+    let id = app.upload(&cost).await;
+    let npy = io::encode_npy(&cost).expect("npy");
+    problem(upload_raw(&app, "application/x-npy", npy).await, 507).await;
+
+    // JSON only for small arrays; unknown formats are 400.
+    let small = app.client.get(app.url(&format!("/v1/datasets/{id}/data")));
+    let res = small
+        .header("accept", "application/json")
+        .send()
+        .await
+        .expect("get");
+    assert_eq!(res.status(), 200, "4096 cells fit in JSON");
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/datasets/{id}/data?format=bmp")))
+        .send()
+        .await
+        .expect("get");
+    let v = problem(res, 400).await;
+    assert_eq!(v["field"], "query");
+
+    // JSON answers are gzip-compressed when the client allows it.
+    let res = app
+        .client
+        .get(app.url("/openapi.json"))
+        .header("accept-encoding", "gzip")
+        .send()
+        .await
+        .expect("get");
+    assert_eq!(res.headers()["content-encoding"], "gzip");
+
+    // After its lifetime the dataset is gone.
+    tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/datasets/{id}")))
+        .send()
+        .await
+        .expect("get");
+    problem(res, 404).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn json_downloads_are_refused_for_large_arrays() {
+    let app = spawn(|_| {}).await;
+    let id = app
+        .upload(&ArrayData::U8(ArrayD::zeros(ndarray::IxDyn(&[300, 300]))))
+        .await;
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/datasets/{id}/data?format=json")))
+        .send()
+        .await
+        .expect("get");
+    let v = problem(res, 406).await;
+    assert_eq!(v["field"], "Accept");
+}
