@@ -274,9 +274,15 @@ pub(crate) fn decode(bytes: &[u8], limits: &Limits) -> Result<(ArrayData, Vec<f6
                 what: "NIfTI volume".into(),
                 reason: format!("cannot reserve {total} bytes: {e}"),
             })?;
-        gz.take((total - HEADER_SIZE) as u64)
+        (&mut gz)
+            .take((total - HEADER_SIZE) as u64)
             .read_to_end(&mut all)
             .map_err(|e| corrupt(format!("gzip stream: {e}")))?;
+        // Read on to the end of the stream (bounded) so that gzip checks
+        // its CRC and length trailer: a cut stream is corrupt even when the
+        // voxels themselves are complete.
+        std::io::copy(&mut gz.take(MAX_VOX_OFFSET as u64), &mut std::io::sink())
+            .map_err(|e| corrupt(format!("gzip stream after the voxels: {e}")))?;
         let data = all.get(layout.vox_offset..total).ok_or_else(|| {
             corrupt(format!(
                 "truncated: the header declares {payload} bytes of voxels at offset {}, but \

@@ -478,7 +478,7 @@ fn descr(dtype: DType) -> &'static str {
 /// let a = ArrayData::U8(ndarray::ArrayD::zeros(vec![2, 2]));
 /// let bytes = encode_npy(&a)?;
 /// assert!(bytes.starts_with(b"\x93NUMPY\x01\x00"));
-/// assert_eq!(bytes.len(), 64 + 4);
+/// assert_eq!(bytes.len(), 128 + 4); // preamble + header padded to 64 bytes, then 4 elements
 /// # Ok::<(), geodex::io::IoError>(())
 /// ```
 pub fn encode_npy(array: &ArrayData) -> Result<Vec<u8>, IoError> {

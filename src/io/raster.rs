@@ -58,6 +58,20 @@ pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<Ar
             ))
         }
     };
+    // The pixel decoders accept files cut after the last pixel; a file
+    // without its end marker is refused as truncated all the same.
+    if format == Format::Png && !bytes.windows(8).any(|w| w == b"IEND\xAE\x42\x60\x82") {
+        return Err(IoError::corrupt(
+            format,
+            format!(
+                "truncated: {} bytes and no complete IEND chunk",
+                bytes.len()
+            ),
+        ));
+    }
+    if format == Format::Jpeg {
+        jpeg_complete(bytes).map_err(|reason| IoError::corrupt(format, reason))?;
+    }
     let mut reader = ImageReader::with_format(Cursor::new(bytes), image_format);
     let side = u32::try_from(limits.max_cells).unwrap_or(u32::MAX);
     let mut image_limits = image::Limits::default();
@@ -132,6 +146,78 @@ pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<Ar
             ))
         }
     })
+}
+
+/// Walks the marker segments of a JPEG file up to its end-of-image marker
+/// (`FF D9`), skipping segment payloads by their declared lengths and the
+/// entropy-coded data after each start-of-scan (where `FF 00` is a stuffed
+/// byte and `FF D0..D7` are restart markers). JPEG decoders pad a truncated
+/// scan silently; this refuses such files. Data after the end-of-image
+/// marker (e.g. an appended video) is ignored.
+fn jpeg_complete(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return Err("missing the start-of-image marker FF D8".into());
+    }
+    let mut pos = 2usize;
+    loop {
+        if bytes.get(pos) != Some(&0xFF) {
+            return Err(if pos >= bytes.len() {
+                format!(
+                    "truncated: {} bytes and no end-of-image marker",
+                    bytes.len()
+                )
+            } else {
+                format!("expected a marker at byte {pos}")
+            });
+        }
+        // Fill bytes.
+        while bytes.get(pos) == Some(&0xFF) {
+            pos += 1;
+        }
+        let marker = *bytes.get(pos).ok_or_else(|| {
+            format!(
+                "truncated: {} bytes and no end-of-image marker",
+                bytes.len()
+            )
+        })?;
+        pos += 1;
+        match marker {
+            0xD9 => return Ok(()),
+            0x01 | 0xD0..=0xD7 => continue,
+            _ => {}
+        }
+        let len = match bytes.get(pos..pos + 2) {
+            Some(&[a, b]) => usize::from(u16::from_be_bytes([a, b])),
+            _ => {
+                return Err(format!(
+                    "truncated in the length of segment FF {marker:02X}"
+                ))
+            }
+        };
+        if len < 2 || pos + len > bytes.len() {
+            return Err(format!(
+                "segment FF {marker:02X} at byte {} declares {len} bytes, {} remain",
+                pos - 2,
+                bytes.len() - pos
+            ));
+        }
+        pos += len;
+        if marker == 0xDA {
+            // Entropy-coded data up to the next real marker.
+            loop {
+                match bytes.get(pos..pos + 2) {
+                    Some(&[0xFF, next]) if next != 0x00 && !(0xD0..=0xD7).contains(&next) => break,
+                    Some(_) => pos += 1,
+                    None => {
+                        return Err(format!(
+                            "truncated inside the scan data: {} bytes and no end-of-image marker",
+                            bytes.len()
+                        ))
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The linear map of [`encode_png16`]: `(lo, hi)` from `range`, or the

@@ -69,8 +69,9 @@ pub(super) fn solve(
     let n = grid.len();
     let st = Stencil::new(grid);
     let second = options.order == Order::Second;
+    let multi = problem.sources.len() > 1;
     let factor = if options.factoring {
-        Factor::new(front, problem.sources.len())
+        Factor::new(problem, front)
     } else {
         None
     };
@@ -161,9 +162,19 @@ pub(super) fn solve(
                 jdx[k] = jk;
                 let w = cost.at(j);
                 let known = |x: usize| state[x] == FROZEN;
-                if let Some((v, l)) =
-                    update(&st, j, jdx, w, &u, &labels, known, second, factor.as_ref())
-                {
+                if let Some((v, l)) = update(
+                    &st,
+                    j,
+                    jdx,
+                    w,
+                    &u,
+                    &labels,
+                    known,
+                    second,
+                    factor.as_ref(),
+                    multi,
+                    cost,
+                ) {
                     u[j] = v;
                     labels[j] = l;
                     state[j] = TRIAL;

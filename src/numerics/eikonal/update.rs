@@ -45,15 +45,18 @@
 //! An axis with no known neighbour on either side is a discrete minimum of
 //! `U` along that axis. On the grid line nearest to an off-grid source
 //! (`|x_k − p_k| ≤ 1/2`) this is an artefact of the source being between
-//! cells, not a sign that `∂_k U ≈ 0`: there we use `D_k V ≈ 0`, i.e. the
-//! term `(∂_k U_0(x))²` (exact for a constant cost; `O(h)` accurate where `V`
-//! is smooth). Elsewhere a missing axis is dropped as usual.
+//! cells, not a sign that `∂_k U ≈ 0`: there the term `(∂_k U_0(x) + ∂_k V)²`
+//! is kept, with `∂_k V` estimated by the centred difference of `V` at the
+//! most upwind neighbour (0 if that stencil is not known; exact for a
+//! constant cost either way). Elsewhere a missing axis is dropped as usual.
 //!
 //! The factored update is tried only when every upwind neighbour carries the
 //! label of the same point source (mixing two sources' cones near a Voronoi
 //! boundary would be meaningless). It falls back to the unfactored update
 //! when the right side is not positive, the root is not finite or it lies
 //! below the smallest upwind value it used.
+
+use crate::numerics::metric::IsotropicCost;
 
 /// Grid geometry, precomputed once per solve.
 #[derive(Debug, Clone)]
@@ -120,21 +123,47 @@ pub(super) struct Factor {
 }
 
 impl Factor {
-    /// Factoring data from the initial front; `None` if there is no point source.
-    pub fn new(front: &super::InitialFront, nsources: usize) -> Option<Self> {
+    /// Factoring data for the point sources of the front; `None` if there is none.
+    ///
+    /// `W_p` is the multilinear interpolation of the cost at `p` from the
+    /// `2^d` cells around it (the front's nearest-cell value if one of them
+    /// is a wall): with the nearest-cell value, `V = U − U_0` would keep a
+    /// cone of slope `O(h)` at `p` and cost the second-order scheme a
+    /// logarithm.
+    pub fn new(problem: &super::EikonalProblem<'_>, front: &super::InitialFront) -> Option<Self> {
         if front.points.is_empty() {
             return None;
         }
-        let mut points = vec![None; nsources];
+        let grid = &problem.grid;
+        let shape = grid.shape3();
+        let mut points = vec![None; problem.sources.len()];
         for sp in &front.points {
+            let p = sp.position;
+            let lo = p.map(|x| x.floor().max(0.0) as usize);
+            let mut w = 0.0;
+            for corner in 0..8usize {
+                let mut idx = [0usize; 3];
+                let mut weight = 1.0;
+                for k in 0..3 {
+                    let up = corner >> k & 1 == 1;
+                    let t = p[k] - lo[k] as f64;
+                    idx[k] = if up {
+                        (lo[k] + 1).min(shape[k] - 1)
+                    } else {
+                        lo[k]
+                    };
+                    weight *= if up { t } else { 1.0 - t };
+                }
+                if weight > 0.0 {
+                    w += weight * problem.cost.at(grid.linear(idx));
+                }
+            }
+            let w = if w.is_finite() && w > 0.0 { w } else { sp.cost };
             if let Some(slot) = usize::try_from(sp.label)
                 .ok()
                 .and_then(|l| points.get_mut(l))
             {
-                *slot = Some(FactorPoint {
-                    p: sp.position,
-                    w: sp.cost,
-                });
+                *slot = Some(FactorPoint { p, w });
             }
         }
         Some(Self { points })
@@ -173,9 +202,11 @@ struct Term {
 /// Computes the upwind update of cell `i` (padded index `idx`, cost `w`).
 ///
 /// `known(j)` says whether neighbour `j` may be used (frozen for fast
-/// marching; finite for fast sweeping); its value is `u[j]`. Returns the new
-/// value and label, or `None` if no neighbour is known or the value would not
-/// be finite. Never returns NaN.
+/// marching; finite for fast sweeping); its value is `u[j]`. With `multi`
+/// (several sources), when the known neighbours carry several labels the
+/// update is computed for each label's neighbours alone and the smallest
+/// wins. Returns the new value and label, or `None` if no neighbour is known
+/// or the value would not be finite. Never returns NaN.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub(super) fn update<K: Fn(usize) -> bool>(
@@ -188,6 +219,68 @@ pub(super) fn update<K: Fn(usize) -> bool>(
     known: K,
     second: bool,
     factor: Option<&Factor>,
+    multi: bool,
+    cost: &IsotropicCost<'_>,
+) -> Option<(f64, i32)> {
+    if multi {
+        // The distinct labels of the known axis neighbours.
+        let mut ls = [0i32; 6];
+        let mut nl = 0;
+        for &k in st.axes() {
+            let s = st.strides[k];
+            let lo = (idx[k] > 0).then(|| i - s);
+            let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
+            for j in [lo, hi].into_iter().flatten() {
+                if known(j) && !ls[..nl].contains(&labels[j]) {
+                    ls[nl] = labels[j];
+                    nl += 1;
+                }
+            }
+        }
+        if nl > 1 {
+            // Each source's front is continued on its own and the smallest
+            // value wins: combining differences of two fronts in one
+            // quadratic would cut the corner at the Voronoi boundary.
+            let mut best: Option<(f64, i32)> = None;
+            for &l in &ls[..nl] {
+                let r = update_one(
+                    st,
+                    i,
+                    idx,
+                    w,
+                    u,
+                    labels,
+                    |j| labels[j] == l && known(j),
+                    second,
+                    factor,
+                    cost,
+                );
+                if let Some(r) = r {
+                    if best.is_none_or(|b| r.0 < b.0) {
+                        best = Some(r);
+                    }
+                }
+            }
+            return best;
+        }
+    }
+    update_one(st, i, idx, w, u, labels, known, second, factor, cost)
+}
+
+/// [`update`] for neighbours that all carry one label (or when labels do not matter).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn update_one<K: Fn(usize) -> bool>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    labels: &[i32],
+    known: K,
+    second: bool,
+    factor: Option<&Factor>,
+    cost: &IsotropicCost<'_>,
 ) -> Option<(f64, i32)> {
     let mut ax = [Axis::default(); 3];
     let mut n = 0;
@@ -242,8 +335,13 @@ pub(super) fn update<K: Fn(usize) -> bool>(
     let w2 = w * w;
 
     if let Some(f) = factor {
-        if let Some(r) = factored(st, idx, w2, ax, &missing[..nmissing], labels, f) {
-            return Some(r);
+        let strip = Strip {
+            missing: &missing[..nmissing],
+            u,
+            known: &known,
+        };
+        if let Some(r) = factored(st, idx, w2, ax, &strip, labels, f) {
+            return Some(cap(st, ax, w, cost, r, labels));
         }
     }
 
@@ -263,7 +361,7 @@ pub(super) fn update<K: Fn(usize) -> bool>(
         }
         if let Some((v, m)) = solve_terms(&mut t[..n], w2) {
             if v.is_finite() && t[..m].iter().all(|t| v >= t.a1) {
-                return Some((v, label_of(&t[..m], labels)));
+                return Some(cap(st, ax, w, cost, (v, label_of(&t[..m], labels)), labels));
             }
         }
     }
@@ -281,6 +379,33 @@ pub(super) fn update<K: Fn(usize) -> bool>(
         .map(|a| (a.a1 + w * st.h[a.k], a.j1))
         .min_by(|x, y| x.0.total_cmp(&y.0))?;
     v.is_finite().then(|| (v, labels[j]))
+}
+
+/// Caps a second-order or factored value at the cost of one straight step
+/// to an upwind neighbour, `a_k + h_k max(W(x), W(x + σ e_k))` (the
+/// larger end cost bounds the step's true cost to `O(h³)`). First-order
+/// unfactored values satisfy it already; the others can overshoot it where
+/// the cost is rough, which would break `U(x) ≤ U(y) + max W |x − y|`.
+#[inline]
+fn cap(
+    st: &Stencil,
+    ax: &[Axis],
+    w: f64,
+    cost: &IsotropicCost<'_>,
+    r: (f64, i32),
+    labels: &[i32],
+) -> (f64, i32) {
+    let mut best = r;
+    for a in ax {
+        let h = st.h[a.k];
+        if a.a1 + w * h < best.0 {
+            let bound = a.a1 + h * w.max(cost.at(a.j1));
+            if bound < best.0 {
+                best = (bound, labels[a.j1]);
+            }
+        }
+    }
+    best
 }
 
 #[inline]
@@ -307,12 +432,12 @@ fn label_of(t: &[Term], labels: &[i32]) -> i32 {
 
 /// The factored update (see the module documentation), or `None` to fall back.
 #[inline]
-fn factored(
+fn factored<K: Fn(usize) -> bool>(
     st: &Stencil,
     idx: [usize; 3],
     w2: f64,
     ax: &[Axis],
-    missing: &[usize],
+    strip: &Strip<'_, K>,
     labels: &[i32],
     f: &Factor,
 ) -> Option<(f64, i32)> {
@@ -335,9 +460,10 @@ fn factored(
     // ∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h (physical derivative).
     let g = d.map(|dk| wp * dk / r);
     let mut rhs = w2;
-    for &k in missing {
+    for &k in strip.missing {
         if (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
-            rhs -= g[k] * g[k];
+            let dv = strip.dv(st, idx, ax, k, d, wp, label, labels);
+            rhs -= (g[k] + dv) * (g[k] + dv);
         }
     }
     if rhs.is_nan() || rhs <= 0.0 {
@@ -372,6 +498,62 @@ fn factored(
     let active = &t[..m];
     let lowest = active.iter().map(|t| t.a1).fold(f64::INFINITY, f64::min);
     (v.is_finite() && v >= lowest).then(|| (v, label_of(active, labels)))
+}
+
+/// What the strip rule needs to estimate `∂_k V` at a cell with no known
+/// neighbour along axis `k`.
+struct Strip<'a, K> {
+    missing: &'a [usize],
+    u: &'a [f64],
+    known: &'a K,
+}
+
+impl<K: Fn(usize) -> bool> Strip<'_, K> {
+    /// `∂_k V(x)`, estimated by the centred difference of `V` along `k` at
+    /// the most upwind neighbour `y` of `x` (an `O(h)` estimate at `x`),
+    /// or 0 when `y ± e_k` are not both known with the same label.
+    ///
+    /// Zero would be exact for a constant cost but makes an `O(h^1.5)` error
+    /// where the rays bend (the strip then reaches `~√(h R)` from the source,
+    /// `R` the rays' radius of curvature).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn dv(
+        &self,
+        st: &Stencil,
+        idx: [usize; 3],
+        ax: &[Axis],
+        k: usize,
+        d: [f64; 3],
+        wp: f64,
+        label: i32,
+        labels: &[i32],
+    ) -> f64 {
+        let Some(a) = ax.iter().min_by(|a, b| a.a1.total_cmp(&b.a1)) else {
+            return 0.0;
+        };
+        if idx[k] == 0 || idx[k] + 1 >= st.shape[k] {
+            return 0.0;
+        }
+        let s = st.strides[k];
+        let y = a.j1;
+        let (lo, hi) = (y - s, y + s);
+        if !((self.known)(lo) && (self.known)(hi) && labels[lo] == label && labels[hi] == label) {
+            return 0.0;
+        }
+        // x − p of y, then of y ∓ e_k (physical).
+        let mut dy = d;
+        dy[a.k] += a.sigma * st.h[a.k];
+        let hk = st.h[k];
+        let r_at = |delta: f64| {
+            let mut q = dy;
+            q[k] += delta;
+            wp * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+        };
+        let v_lo = self.u[lo] - r_at(-hk);
+        let v_hi = self.u[hi] - r_at(hk);
+        (v_hi - v_lo) / (2.0 * hk)
+    }
 }
 
 /// Solves `Σ c2_k ((U − b_k)⁺)² = rhs` (`rhs > 0`): sorts the terms by `b`
@@ -424,6 +606,8 @@ mod tests {
             |j| u[j].is_finite(),
             second,
             None,
+            false,
+            &IsotropicCost::constant(w.min(1e300)).unwrap(),
         )
     }
 
