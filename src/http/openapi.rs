@@ -32,7 +32,7 @@ Every error is an RFC 9457 `application/problem+json` document naming the offend
         (name = "operations", description = "Health, readiness and metrics."),
     ),
     components(
-        schemas(Problem),
+        schemas(Problem, FileBytes),
         responses(
             BadRequest,
             NotFound,
@@ -206,6 +206,23 @@ pub struct DeadlineExceeded(#[allow(dead_code)] Problem);
     })
 )]
 pub struct InsufficientStorage(#[allow(dead_code)] Problem);
+
+/// Raw file bytes: the schema of binary request and response bodies
+/// (`type: string, format: binary`).
+pub struct FileBytes;
+
+impl utoipa::PartialSchema for FileBytes {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, SchemaFormat, Type};
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+            .description(Some("Raw file bytes."))
+            .into()
+    }
+}
+
+impl utoipa::ToSchema for FileBytes {}
 
 /// The whole OpenAPI document (paths from the router, plus [`ApiDoc`]).
 pub fn document() -> utoipa::openapi::OpenApi {

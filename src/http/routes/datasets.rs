@@ -52,6 +52,7 @@ impl From<UploadFormat> for Format {
 #[into_params(parameter_in = Query)]
 pub struct UploadQuery {
     /// The file format; default: from `Content-Type`, else detected from the bytes.
+    #[param(inline)]
     pub format: Option<UploadFormat>,
 }
 
@@ -77,6 +78,7 @@ pub enum OutputFormat {
 #[into_params(parameter_in = Query)]
 pub struct DataQuery {
     /// The representation; default: from `Accept`, else `npy`.
+    #[param(inline)]
     pub format: Option<OutputFormat>,
 }
 
@@ -155,13 +157,13 @@ The array is stored once as canonical NPY; sizes are checked before anything is 
     request_body(
         description = "The file: NPY, PNG, JPEG, TIFF or NIfTI (`.nii` or `.nii.gz`).",
         content(
-            ([u8] = "application/x-npy"),
-            ([u8] = "image/png"),
-            ([u8] = "image/jpeg"),
-            ([u8] = "image/tiff"),
-            ([u8] = "application/x-nifti"),
-            ([u8] = "application/gzip"),
-            ([u8] = "application/octet-stream"),
+            (crate::http::openapi::FileBytes = "application/x-npy"),
+            (crate::http::openapi::FileBytes = "image/png"),
+            (crate::http::openapi::FileBytes = "image/jpeg"),
+            (crate::http::openapi::FileBytes = "image/tiff"),
+            (crate::http::openapi::FileBytes = "application/x-nifti"),
+            (crate::http::openapi::FileBytes = "application/gzip"),
+            (crate::http::openapi::FileBytes = "application/octet-stream"),
         )
     ),
     responses(
@@ -330,12 +332,13 @@ pub fn encode(
     responses(
         (status = 200, description = "The array.",
             content(
-                ([u8] = "application/x-npy"),
-                ([u8] = "image/tiff"),
-                ([u8] = "image/png"),
+                (crate::http::openapi::FileBytes = "application/x-npy"),
+                (crate::http::openapi::FileBytes = "image/tiff"),
+                (crate::http::openapi::FileBytes = "image/png"),
                 (ArrayJson = "application/json", example = json!({"shape": [2, 2], "dtype": "f64", "data": [0.0, 1.0, 1.0, 1.5]})),
             )
         ),
+        (status = 400, response = crate::http::openapi::BadRequest),
         (status = 404, response = crate::http::openapi::NotFound),
         (status = 406, response = crate::http::openapi::NotAcceptable),
         (status = 500, response = crate::http::openapi::InternalError),

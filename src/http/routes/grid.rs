@@ -100,6 +100,7 @@ pub struct DistanceForm {
 #[into_params(parameter_in = Query)]
 pub struct DistanceQuery {
     /// `npy` answers with the distance array bytes directly (like `Accept: application/x-npy`).
+    #[param(inline)]
     pub format: Option<DirectFormat>,
 }
 
@@ -262,7 +263,7 @@ is 503 with `Retry-After`; a solve that passes the deadline is cancelled (504)."
         (status = 200, description = "The distance map (and labels) were computed and stored.",
             content(
                 (DistanceResponse = "application/json"),
-                ([u8] = "application/x-npy"),
+                (crate::http::openapi::FileBytes = "application/x-npy"),
             )
         ),
         (status = 400, response = crate::http::openapi::BadRequest),
