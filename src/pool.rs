@@ -256,17 +256,25 @@ mod tests {
     #[tokio::test]
     async fn dropping_the_future_cancels_the_job() {
         let pool = SolverPool::new(1, 1).expect("pool");
+        let (started_tx, started_rx) = std::sync::mpsc::channel();
         let (seen_tx, seen_rx) = std::sync::mpsc::channel();
-        let fut = pool.run("t", Duration::from_secs(30), move |c| {
+        let mut fut = Box::pin(pool.run("t", Duration::from_secs(30), move |c| {
+            let _ = started_tx.send(());
             let cancelled = spin_until_cancelled(c);
             let _ = seen_tx.send(cancelled);
-        });
-        // Poll briefly, then drop (as hyper does when the client disconnects).
-        let _ = tokio::time::timeout(Duration::from_millis(50), fut).await;
+        }));
+        // Drive the future until the job runs on the pool, then drop it (as
+        // hyper does when the client disconnects).
+        while started_rx.try_recv().is_err() {
+            tokio::select! {
+                _ = &mut fut => panic!("the job cannot finish before it is cancelled"),
+                () = tokio::time::sleep(Duration::from_millis(5)) => {}
+            }
+        }
+        drop(fut);
         let cancelled = seen_rx
             .recv_timeout(Duration::from_secs(10))
             .expect("job ran");
         assert!(cancelled, "the job saw its cancel flag");
-        assert_eq!(pool.running(), 0);
     }
 }
