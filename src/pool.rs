@@ -174,7 +174,17 @@ impl SolverPool {
             let _running = Count::enter(&running, telemetry::IN_FLIGHT);
             let started = Instant::now();
             let control = Control::new().with_cancel(&flag);
-            let out = job(&control);
+            // A panicking solver must not take the process down (rayon aborts
+            // on an uncaught panic in `spawn`): catch it, drop the sender, and
+            // the caller sees `PoolError::Lost` (a 500).
+            let out = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| job(&control)))
+            {
+                Ok(out) => out,
+                Err(_) => {
+                    tracing::error!(operation, "a solve panicked");
+                    return;
+                }
+            };
             let run_seconds = started.elapsed().as_secs_f64();
             metrics::histogram!(telemetry::SOLVE_SECONDS, "operation" => operation)
                 .record(run_seconds);
@@ -196,6 +206,23 @@ impl SolverPool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[tokio::test]
+    async fn a_panicking_job_is_lost_and_the_pool_survives() {
+        let pool = SolverPool::new(1, 2).unwrap();
+        let r: Result<((), JobTiming), PoolError> = pool
+            .run("test", Duration::from_secs(5), |_c: &Control<'_>| {
+                panic!("boom")
+            })
+            .await;
+        assert_eq!(r.unwrap_err(), PoolError::Lost);
+        let (v, _) = pool
+            .run("test", Duration::from_secs(5), |_c: &Control<'_>| 7)
+            .await
+            .unwrap();
+        assert_eq!(v, 7);
+        assert!(pool.has_room());
+    }
 
     fn spin_until_cancelled(c: &Control<'_>) -> bool {
         let t = Instant::now();
