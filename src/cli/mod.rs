@@ -6,6 +6,9 @@ use clap::{Parser, Subcommand};
 
 use crate::config::ServeArgs;
 
+pub mod distance;
+mod usage;
+
 /// geodex: geodesic distances, minimal paths and segmentations.
 #[derive(Debug, Parser)]
 #[command(name = "geodex", version, about)]
@@ -20,13 +23,16 @@ pub struct Cli {
 pub enum Command {
     /// Run the HTTP service (the default).
     Serve(ServeArgs),
+    /// Compute a distance map from NPY files (batch use).
+    Distance(distance::DistanceArgs),
 }
 
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = usage::parse_or_exit::<Cli>();
     let result = match cli.command {
         Some(Command::Serve(args)) => crate::app::serve(args),
+        Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         None => match Cli::try_parse_from(["geodex", "serve"]) {
             Ok(Cli {
                 command: Some(Command::Serve(args)),
