@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 use crate::config::ServeArgs;
 
+pub mod bench;
 pub mod distance;
 mod usage;
 
@@ -25,6 +26,8 @@ pub enum Command {
     Serve(ServeArgs),
     /// Compute a distance map from NPY files (batch use).
     Distance(distance::DistanceArgs),
+    /// Time the solvers on fixed problems (see `geodex bench --help`).
+    Bench(bench::BenchArgs),
 }
 
 /// Entry point of the binary.
@@ -33,6 +36,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
+        Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
         None => match Cli::try_parse_from(["geodex", "serve"]) {
             Ok(Cli {
                 command: Some(Command::Serve(args)),
