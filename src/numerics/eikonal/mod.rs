@@ -24,6 +24,7 @@ mod dijkstra;
 mod fast_marching;
 mod fast_sweeping;
 mod sources;
+mod update;
 
 pub use sources::{nearest_cell, target_cells, InitialFront, SeedCell, SeedPoint};
 
@@ -299,7 +300,6 @@ pub fn solve(
 
 /// Packages the flat (C-order) working arrays of a solver as an [`EikonalOutput`]
 /// in the caller's shape.
-#[allow(dead_code)] // Used by every solver; remove once they land.
 pub(crate) fn finish(
     grid: &Grid,
     distance: Vec<f64>,

@@ -1,0 +1,606 @@
+//! The local upwind solver shared by fast marching and fast sweeping.
+//!
+//! # Scheme
+//!
+//! At a cell `x` with cost `W = W(x)`, each axis `k` (of length > 1) whose
+//! smaller known neighbour `x + σ e_k` (`σ = ±1`) has value `a_k` contributes
+//! one one-sided difference `D_k U = c_k (U − b_k)`:
+//!
+//! * first order: `D_k U = (U − a_k) / h_k`, so `c_k = 1/h_k`, `b_k = a_k`;
+//! * second order (when the next cell `x + 2σ e_k` is known and its value
+//!   `a2_k ≤ a_k`): `D_k U = (3U − 4a_k + a2_k) / (2h_k)`, so
+//!   `c_k = 3/(2h_k)`, `b_k = (4a_k − a2_k)/3` (first order for that axis
+//!   otherwise).
+//!
+//! `U` is the root of the upwind quadratic
+//!
+//! ```text
+//! Σ_k c_k² ((U − b_k)⁺)² = W²
+//! ```
+//!
+//! whose left side increases from 0 at `U = min b_k`, so the root exists,
+//! is unique and is `> min b_k`. It is found by adding the axes in
+//! increasing `b_k` until the root of the active terms is `≤` the next `b`
+//! (causality: axes with `b_k ≥ U` are dropped). Because `b_k ≥ a_k` for the
+//! second-order terms, `U` is at least every upwind value it uses. This is
+//! Sethian's (1996) update with per-axis spacing and Tsitsiklis' (1995)
+//! causality; the second order one-sided stencil is Sethian's "FMM 2".
+//!
+//! # Source factoring
+//!
+//! Near a point source `p` of cost `W_p` the solution behaves like the cone
+//! `U_0(x) = W_p |x − p|_h`, whose gradient is singular at `p` and makes
+//! every finite-difference scheme lose about one order near it. With additive
+//! factoring (Fomel–Luo–Zhao 2009, Treister–Haber 2016) the scheme works on
+//! `V = U − U_0`: every one-sided difference of `U` is replaced by the same
+//! difference of `V` plus the exact derivative of `U_0` at `x`,
+//!
+//! ```text
+//! D_k U := D_k V − σ ∂_k U_0(x),
+//! ```
+//!
+//! which keeps the form `c_k (U − b_k)` with a shifted `b_k`. For a constant
+//! cost `V ≡ 0`, so every difference is exact and so is the scheme.
+//!
+//! An axis with no known neighbour on either side is a discrete minimum of
+//! `U` along that axis. On the grid line nearest to an off-grid source
+//! (`|x_k − p_k| ≤ 1/2`) this is an artefact of the source being between
+//! cells, not a sign that `∂_k U ≈ 0`: there we use `D_k V ≈ 0`, i.e. the
+//! term `(∂_k U_0(x))²` (exact for a constant cost; `O(h)` accurate where `V`
+//! is smooth). Elsewhere a missing axis is dropped as usual.
+//!
+//! The factored update is tried only when every upwind neighbour carries the
+//! label of the same point source (mixing two sources' cones near a Voronoi
+//! boundary would be meaningless). It falls back to the unfactored update
+//! when the right side is not positive, the root is not finite or it lies
+//! below the smallest upwind value it used.
+
+use crate::numerics::metric::IsotropicCost;
+
+/// Grid geometry, precomputed once per solve.
+#[derive(Debug, Clone)]
+pub(super) struct Stencil {
+    /// Padded shape.
+    pub shape: [usize; 3],
+    /// C-order strides of the padded shape.
+    pub strides: [usize; 3],
+    /// Padded spacing.
+    pub h: [f64; 3],
+    /// `1/h_k²` (first-order coefficient squared).
+    inv_h2: [f64; 3],
+    /// `9/(4 h_k²)` (second-order coefficient squared).
+    inv_h2_second: [f64; 3],
+    /// Axes of length > 1.
+    axes: [usize; 3],
+    naxes: usize,
+}
+
+impl Stencil {
+    /// The stencil of a grid.
+    pub fn new(grid: &crate::numerics::grid::Grid) -> Self {
+        let shape = grid.shape3();
+        let h = grid.spacing3();
+        let mut axes = [0usize; 3];
+        let mut naxes = 0;
+        for (k, &n) in shape.iter().enumerate() {
+            if n > 1 {
+                axes[naxes] = k;
+                naxes += 1;
+            }
+        }
+        Self {
+            shape,
+            strides: grid.strides3(),
+            h,
+            inv_h2: h.map(|h| 1.0 / (h * h)),
+            inv_h2_second: h.map(|h| 2.25 / (h * h)),
+            axes,
+            naxes,
+        }
+    }
+
+    /// The axes of length > 1.
+    #[inline]
+    pub fn axes(&self) -> &[usize] {
+        &self.axes[..self.naxes]
+    }
+}
+
+/// A point source as seen by factoring.
+#[derive(Debug, Clone, Copy)]
+struct FactorPoint {
+    /// Padded index coordinates.
+    p: [f64; 3],
+    /// `W(p)`.
+    w: f64,
+}
+
+/// The point sources by label, for source factoring.
+#[derive(Debug, Clone)]
+pub(super) struct Factor {
+    points: Vec<Option<FactorPoint>>,
+}
+
+impl Factor {
+    /// Factoring data for the point sources of the front; `None` if there is none.
+    ///
+    /// `W_p` is the multilinear interpolation of the cost at `p` from the
+    /// `2^d` cells around it (the front's nearest-cell value if one of them
+    /// is a wall): with the nearest-cell value, `V = U − U_0` would keep a
+    /// cone of slope `O(h)` at `p` and cost the second-order scheme a
+    /// logarithm.
+    pub fn new(problem: &super::EikonalProblem<'_>, front: &super::InitialFront) -> Option<Self> {
+        if front.points.is_empty() {
+            return None;
+        }
+        let grid = &problem.grid;
+        let shape = grid.shape3();
+        let mut points = vec![None; problem.sources.len()];
+        for sp in &front.points {
+            let p = sp.position;
+            let lo = p.map(|x| x.floor().max(0.0) as usize);
+            let mut w = 0.0;
+            for corner in 0..8usize {
+                let mut idx = [0usize; 3];
+                let mut weight = 1.0;
+                for k in 0..3 {
+                    let up = corner >> k & 1 == 1;
+                    let t = p[k] - lo[k] as f64;
+                    idx[k] = if up {
+                        (lo[k] + 1).min(shape[k] - 1)
+                    } else {
+                        lo[k]
+                    };
+                    weight *= if up { t } else { 1.0 - t };
+                }
+                if weight > 0.0 {
+                    w += weight * problem.cost.at(grid.linear(idx));
+                }
+            }
+            let w = if w.is_finite() && w > 0.0 { w } else { sp.cost };
+            if let Some(slot) = usize::try_from(sp.label)
+                .ok()
+                .and_then(|l| points.get_mut(l))
+            {
+                *slot = Some(FactorPoint { p, w });
+            }
+        }
+        Some(Self { points })
+    }
+
+    #[inline]
+    fn point(&self, label: i32) -> Option<FactorPoint> {
+        usize::try_from(label)
+            .ok()
+            .and_then(|l| self.points.get(l).copied().flatten())
+    }
+}
+
+/// One axis' upwind data.
+#[derive(Debug, Clone, Copy, Default)]
+struct Axis {
+    k: usize,
+    /// Smaller known neighbour value and index.
+    a1: f64,
+    j1: usize,
+    /// `+1.0` if the neighbour is at `x + e_k`, `-1.0` if at `x − e_k`.
+    sigma: f64,
+    /// Second neighbour value (`+inf` when the second-order stencil is missing).
+    a2: f64,
+}
+
+/// One term `c2 ((U − b)⁺)²` of the quadratic.
+#[derive(Debug, Clone, Copy, Default)]
+struct Term {
+    b: f64,
+    c2: f64,
+    a1: f64,
+    j1: usize,
+}
+
+/// Computes the upwind update of cell `i` (padded index `idx`, cost `w`).
+///
+/// `known(j)` says whether neighbour `j` may be used (frozen for fast
+/// marching; finite for fast sweeping); its value is `u[j]`. With `multi`
+/// (several sources), when the known neighbours carry several labels the
+/// update is computed for each label's neighbours alone and the smallest
+/// wins. Returns the new value and label, or `None` if no neighbour is known
+/// or the value would not be finite. Never returns NaN.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(super) fn update<K: Fn(usize) -> bool>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    labels: &[i32],
+    known: K,
+    second: bool,
+    factor: Option<&Factor>,
+    multi: bool,
+    cost: &IsotropicCost<'_>,
+) -> Option<(f64, i32)> {
+    if multi {
+        // The distinct labels of the known axis neighbours.
+        let mut ls = [0i32; 6];
+        let mut nl = 0;
+        for &k in st.axes() {
+            let s = st.strides[k];
+            let lo = (idx[k] > 0).then(|| i - s);
+            let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
+            for j in [lo, hi].into_iter().flatten() {
+                if known(j) && !ls[..nl].contains(&labels[j]) {
+                    ls[nl] = labels[j];
+                    nl += 1;
+                }
+            }
+        }
+        if nl > 1 {
+            // Each source's front is continued on its own and the smallest
+            // value wins: combining differences of two fronts in one
+            // quadratic would cut the corner at the Voronoi boundary.
+            let mut best: Option<(f64, i32)> = None;
+            for &l in &ls[..nl] {
+                let r = update_one(
+                    st,
+                    i,
+                    idx,
+                    w,
+                    u,
+                    labels,
+                    |j| labels[j] == l && known(j),
+                    second,
+                    factor,
+                    cost,
+                );
+                if let Some(r) = r {
+                    if best.is_none_or(|b| r.0 < b.0) {
+                        best = Some(r);
+                    }
+                }
+            }
+            return best;
+        }
+    }
+    update_one(st, i, idx, w, u, labels, known, second, factor, cost)
+}
+
+/// [`update`] for neighbours that all carry one label (or when labels do not matter).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn update_one<K: Fn(usize) -> bool>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    labels: &[i32],
+    known: K,
+    second: bool,
+    factor: Option<&Factor>,
+    cost: &IsotropicCost<'_>,
+) -> Option<(f64, i32)> {
+    let mut ax = [Axis::default(); 3];
+    let mut n = 0;
+    let mut missing = [0usize; 3];
+    let mut nmissing = 0;
+    for &k in st.axes() {
+        let s = st.strides[k];
+        let mut a1 = f64::INFINITY;
+        let mut j1 = usize::MAX;
+        let mut sigma = 0.0;
+        if idx[k] > 0 && known(i - s) {
+            a1 = u[i - s];
+            j1 = i - s;
+            sigma = -1.0;
+        }
+        if idx[k] + 1 < st.shape[k] && known(i + s) && u[i + s] < a1 {
+            a1 = u[i + s];
+            j1 = i + s;
+            sigma = 1.0;
+        }
+        if j1 == usize::MAX {
+            missing[nmissing] = k;
+            nmissing += 1;
+            continue;
+        }
+        let mut a2 = f64::INFINITY;
+        if second {
+            let j2 = if sigma < 0.0 {
+                (idx[k] >= 2).then(|| j1 - s)
+            } else {
+                (idx[k] + 2 < st.shape[k]).then(|| j1 + s)
+            };
+            if let Some(j2) = j2 {
+                if known(j2) && u[j2] <= a1 {
+                    a2 = u[j2];
+                }
+            }
+        }
+        ax[n] = Axis {
+            k,
+            a1,
+            j1,
+            sigma,
+            a2,
+        };
+        n += 1;
+    }
+    if n == 0 {
+        return None;
+    }
+    let ax = &ax[..n];
+    let w2 = w * w;
+
+    if let Some(f) = factor {
+        if let Some(r) = factored(st, idx, w2, ax, &missing[..nmissing], labels, f) {
+            return Some(cap(st, ax, w, cost, r, labels));
+        }
+    }
+
+    let mut t = [Term::default(); 3];
+    if second && ax.iter().any(|a| a.a2 < f64::INFINITY) {
+        for (t, a) in t.iter_mut().zip(ax) {
+            *t = if a.a2 < f64::INFINITY {
+                Term {
+                    b: (4.0 * a.a1 - a.a2) / 3.0,
+                    c2: st.inv_h2_second[a.k],
+                    a1: a.a1,
+                    j1: a.j1,
+                }
+            } else {
+                first_term(st, a)
+            };
+        }
+        if let Some((v, m)) = solve_terms(&mut t[..n], w2) {
+            if v.is_finite() && t[..m].iter().all(|t| v >= t.a1) {
+                return Some(cap(st, ax, w, cost, (v, label_of(&t[..m], labels)), labels));
+            }
+        }
+    }
+    for (t, a) in t.iter_mut().zip(ax) {
+        *t = first_term(st, a);
+    }
+    if let Some((v, m)) = solve_terms(&mut t[..n], w2) {
+        if v.is_finite() && v >= t[0].a1 {
+            return Some((v, label_of(&t[..m], labels)));
+        }
+    }
+    // Only reached through overflow or rounding: the one-axis update.
+    let (v, j) = ax
+        .iter()
+        .map(|a| (a.a1 + w * st.h[a.k], a.j1))
+        .min_by(|x, y| x.0.total_cmp(&y.0))?;
+    v.is_finite().then(|| (v, labels[j]))
+}
+
+/// Caps a second-order or factored value at the cost of one straight step
+/// to an upwind neighbour, `a_k + h_k max(W(x), W(x + σ e_k))` (the
+/// larger end cost bounds the step's true cost to `O(h³)`). First-order
+/// unfactored values satisfy it already; the others can overshoot it where
+/// the cost is rough, which would break `U(x) ≤ U(y) + max W |x − y|`.
+#[inline]
+fn cap(
+    st: &Stencil,
+    ax: &[Axis],
+    w: f64,
+    cost: &IsotropicCost<'_>,
+    r: (f64, i32),
+    labels: &[i32],
+) -> (f64, i32) {
+    let mut best = r;
+    for a in ax {
+        let h = st.h[a.k];
+        if a.a1 + w * h < best.0 {
+            let bound = a.a1 + h * w.max(cost.at(a.j1));
+            if bound < best.0 {
+                best = (bound, labels[a.j1]);
+            }
+        }
+    }
+    best
+}
+
+#[inline]
+fn first_term(st: &Stencil, a: &Axis) -> Term {
+    Term {
+        b: a.a1,
+        c2: st.inv_h2[a.k],
+        a1: a.a1,
+        j1: a.j1,
+    }
+}
+
+/// The label of the active term with the smallest upwind value.
+#[inline]
+fn label_of(t: &[Term], labels: &[i32]) -> i32 {
+    let mut best = &t[0];
+    for x in &t[1..] {
+        if x.a1 < best.a1 {
+            best = x;
+        }
+    }
+    labels[best.j1]
+}
+
+/// The factored update (see the module documentation), or `None` to fall back.
+#[inline]
+fn factored(
+    st: &Stencil,
+    idx: [usize; 3],
+    w2: f64,
+    ax: &[Axis],
+    missing: &[usize],
+    labels: &[i32],
+    f: &Factor,
+) -> Option<(f64, i32)> {
+    let label = labels[ax[0].j1];
+    if ax[1..].iter().any(|a| labels[a.j1] != label) {
+        return None;
+    }
+    let FactorPoint { p, w: wp } = f.point(label)?;
+    let mut d = [0.0; 3];
+    let mut r2 = 0.0;
+    for k in 0..3 {
+        d[k] = (idx[k] as f64 - p[k]) * st.h[k];
+        r2 += d[k] * d[k];
+    }
+    if r2 <= 0.0 {
+        return None;
+    }
+    let r = r2.sqrt();
+    let u0 = wp * r;
+    // ∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h (physical derivative).
+    let g = d.map(|dk| wp * dk / r);
+    let mut rhs = w2;
+    for &k in missing {
+        if (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
+            rhs -= g[k] * g[k];
+        }
+    }
+    if rhs.is_nan() || rhs <= 0.0 {
+        return None;
+    }
+    let mut t = [Term::default(); 3];
+    for (t, a) in t.iter_mut().zip(ax) {
+        let k = a.k;
+        let h = st.h[k];
+        let sh = a.sigma * h;
+        // U_0 at x + σ e_k and x + 2σ e_k.
+        let v1 = a.a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
+        *t = if a.a2 < f64::INFINITY {
+            let v2 = a.a2 - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
+            Term {
+                b: (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g[k],
+                c2: st.inv_h2_second[k],
+                a1: a.a1,
+                j1: a.j1,
+            }
+        } else {
+            Term {
+                b: v1 + u0 + sh * g[k],
+                c2: st.inv_h2[k],
+                a1: a.a1,
+                j1: a.j1,
+            }
+        };
+    }
+    let n = ax.len();
+    let (v, m) = solve_terms(&mut t[..n], rhs)?;
+    let active = &t[..m];
+    let lowest = active.iter().map(|t| t.a1).fold(f64::INFINITY, f64::min);
+    (v.is_finite() && v >= lowest).then(|| (v, label_of(active, labels)))
+}
+
+/// Solves `Σ c2_k ((U − b_k)⁺)² = rhs` (`rhs > 0`): sorts the terms by `b`
+/// and returns the root and the number of active (leading) terms.
+#[inline]
+fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, usize)> {
+    // Insertion sort of at most 3 terms.
+    for a in 1..t.len() {
+        let mut b = a;
+        while b > 0 && t[b].b < t[b - 1].b {
+            t.swap(b, b - 1);
+            b -= 1;
+        }
+    }
+    let b0 = t[0].b;
+    let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
+    for m in 0..t.len() {
+        let c2 = t[m].c2;
+        let d = t[m].b - b0;
+        sa += c2;
+        sb += c2 * d;
+        sc += c2 * d * d;
+        let disc = sb * sb - sa * (sc - rhs);
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let v = (sb + disc.sqrt()) / sa;
+        if m + 1 == t.len() || v <= t[m + 1].b - b0 {
+            return Some((b0 + v, m + 1));
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::grid::Grid;
+
+    fn run(grid: &Grid, u: &[f64], x: [usize; 3], w: f64, second: bool) -> Option<(f64, i32)> {
+        let st = Stencil::new(grid);
+        let labels: Vec<i32> = (0..u.len() as i32).collect();
+        update(
+            &st,
+            grid.linear(x),
+            x,
+            w,
+            u,
+            &labels,
+            |j| u[j].is_finite(),
+            second,
+            None,
+            false,
+            &IsotropicCost::constant(w.min(1e300)).unwrap(),
+        )
+    }
+
+    #[test]
+    fn one_neighbour_gives_a_plus_wh() {
+        let g = Grid::new(&[3, 3], &[1.0, 0.5]).unwrap();
+        let mut u = vec![f64::INFINITY; 9];
+        u[g.linear([0, 1, 0])] = 2.0;
+        let (v, l) = run(&g, &u, [0, 1, 1], 3.0, false).unwrap();
+        assert_eq!(v, 2.0 + 1.5);
+        assert_eq!(l, 3);
+    }
+
+    #[test]
+    fn two_equal_neighbours_give_the_diagonal_value() {
+        // (U − 0)² + (U − 0)² = 1  →  U = 1/√2.
+        let g = Grid::unit(&[3, 3]).unwrap();
+        let mut u = vec![f64::INFINITY; 9];
+        u[g.linear([0, 0, 1])] = 0.0;
+        u[g.linear([0, 1, 0])] = 0.0;
+        let (v, _) = run(&g, &u, [0, 1, 1], 1.0, false).unwrap();
+        assert!((v - 0.5f64.sqrt()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn causality_drops_a_far_upwind_value() {
+        // b = (0, 5): the root with the first axis alone is 1 <= 5.
+        let g = Grid::unit(&[3, 3]).unwrap();
+        let mut u = vec![f64::INFINITY; 9];
+        u[g.linear([0, 0, 1])] = 0.0;
+        u[g.linear([0, 1, 0])] = 5.0;
+        let (v, l) = run(&g, &u, [0, 1, 1], 1.0, false).unwrap();
+        assert_eq!(v, 1.0);
+        assert_eq!(l, 1);
+    }
+
+    #[test]
+    fn second_order_is_exact_on_a_linear_function() {
+        // U = 2 x along axis 2 with W = 2: (3U − 4·2 + 0)/2 = 2  →  U = 4.
+        let g = Grid::unit(&[1, 5]).unwrap();
+        let u = vec![0.0, 2.0, f64::INFINITY, f64::INFINITY, f64::INFINITY];
+        let (v, _) = run(&g, &u, [0, 0, 2], 2.0, true).unwrap();
+        assert!((v - 4.0).abs() < 1e-14);
+        // A missing second neighbour falls back to first order: 2 + 2.
+        let u = vec![f64::INFINITY, 2.0, f64::INFINITY, f64::INFINITY, 7.0];
+        let (v, _) = run(&g, &u, [0, 0, 2], 2.0, true).unwrap();
+        assert_eq!(v, 4.0);
+    }
+
+    #[test]
+    fn huge_costs_give_none_not_nan() {
+        let g = Grid::unit(&[3, 3]).unwrap();
+        let mut u = vec![f64::INFINITY; 9];
+        u[g.linear([0, 0, 1])] = 1e308;
+        u[g.linear([0, 1, 0])] = 1e308;
+        assert_eq!(run(&g, &u, [0, 1, 1], 1e308, true), None);
+        assert_eq!(run(&g, &[f64::INFINITY; 9], [0, 1, 1], 1.0, true), None);
+    }
+}
