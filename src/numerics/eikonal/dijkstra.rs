@@ -30,7 +30,10 @@
 //! Seeds are the cells of the [`InitialFront`] with their values and labels;
 //! `U` is the length of the shortest path from a seed (plus the seed's value),
 //! and the label of a cell is the label of the seed at the root of its branch
-//! of the shortest-path tree. Runtime `O(N k log N)` for `k` neighbours.
+//! of the shortest-path tree. The open cells live in the indexed heap of
+//! [`crate::numerics::heap`] (decrease-key, no stale entries). Runtime
+//! `O(N k log N)` for `k` neighbours; memory 17 bytes per cell (distance,
+//! label, settled flag, heap position) plus 16 per cell of the open set.
 //!
 //! # Metrication error
 //! A graph path can only move along the offsets of the neighbourhood, so even
@@ -60,15 +63,13 @@
 //! cell that was not settled gets `+inf` and label `-1`. The cancel flag is
 //! polled every 4096 settled cells.
 
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
-
 use super::{
     finish, target_cells, Connectivity, EikonalError, EikonalOptions, EikonalOutput,
     EikonalProblem, InitialFront, StopReason,
 };
 use crate::numerics::control::Control;
 use crate::numerics::grid::Grid;
+use crate::numerics::heap::IndexedHeap;
 
 /// Cells settled between two polls of the cancel flag.
 const POLL_EVERY: usize = 4096;
@@ -177,31 +178,6 @@ fn permutations(v: &mut Vec<usize>, start: usize, f: &mut dyn FnMut(&[usize])) {
     }
 }
 
-/// A tentative value in the heap (lazy deletion: stale entries are skipped).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Entry {
-    value: f64,
-    cell: u32,
-}
-
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Reversed: BinaryHeap is a max-heap and we pop the smallest value.
-        other
-            .value
-            .total_cmp(&self.value)
-            .then_with(|| other.cell.cmp(&self.cell))
-    }
-}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
 /// Solves the problem; see the module documentation.
 pub(super) fn solve(
     problem: &EikonalProblem<'_>,
@@ -235,15 +211,12 @@ pub(super) fn solve(
         }
     }
 
-    let mut heap = BinaryHeap::with_capacity(front.cells.len().max(1024));
+    let mut heap = IndexedHeap::new(n);
     for seed in &front.cells {
         if seed.value < dist[seed.index] {
             dist[seed.index] = seed.value;
             labels[seed.index] = seed.label;
-            heap.push(Entry {
-                value: seed.value,
-                cell: seed.index as u32,
-            });
+            heap.push_or_decrease(seed.index as u32, seed.value);
         }
     }
 
@@ -264,13 +237,10 @@ pub(super) fn solve(
             early = true;
             break;
         }
-        let Some(Entry { value, cell }) = heap.pop() else {
+        let Some((cell, value)) = heap.pop() else {
             break;
         };
         let a = cell as usize;
-        if settled[a] || value > dist[a] {
-            continue;
-        }
         if options.stop.max_distance.is_some_and(|d| value > d) {
             stop = StopReason::MaxDistance;
             early = true;
@@ -324,10 +294,7 @@ pub(super) fn solve(
             if candidate < dist[b] {
                 dist[b] = candidate;
                 labels[b] = label;
-                heap.push(Entry {
-                    value: candidate,
-                    cell: b as u32,
-                });
+                heap.push_or_decrease(b as u32, candidate);
             }
         }
     }
