@@ -43,10 +43,20 @@ pub struct DistanceArgs {
     pub shape: Option<Vec<usize>>,
     /// A point source in index coordinates, axis 0 first; repeat for several
     /// sources (label i-1 for the i-th).
-    #[arg(long = "source", value_name = "I,J[,K]", required = true)]
+    #[arg(
+        long = "source",
+        value_name = "I,J[,K]",
+        required = true,
+        allow_hyphen_values = true
+    )]
     pub sources: Vec<String>,
     /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
-    #[arg(long, value_name = "H[,H..]", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     pub spacing: Option<Vec<f64>>,
     /// The solver.
     #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
@@ -67,10 +77,10 @@ pub struct DistanceArgs {
     #[arg(long, value_name = "MASK.npy")]
     pub obstacles: Option<PathBuf>,
     /// Stop once the front passes this distance (cells beyond stay +inf).
-    #[arg(long, value_name = "D")]
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
     pub max_distance: Option<f64>,
     /// Stop once these points (index coordinates) are reached; repeatable.
-    #[arg(long = "target", value_name = "I,J[,K]")]
+    #[arg(long = "target", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub targets: Vec<String>,
     /// Where to write the distance U (f64 NPY, +inf where not reached).
     #[arg(long, value_name = "U.npy")]
@@ -290,6 +300,12 @@ fn flag_of(field: &str, cost_flag: &str) -> String {
     if let Some(i) = indexed("stop.targets[") {
         return format!("--target {}", i + 1);
     }
+    if let Some(i) = indexed("spacing[") {
+        return format!("--spacing value {}", i + 1);
+    }
+    if let Some(i) = indexed("cost.shape[").filter(|_| cost_flag == "--shape") {
+        return format!("--shape value {}", i + 1);
+    }
     let root = field.split(['.', '[']).next().unwrap_or(field);
     match (root, field) {
         ("cost", _) => cost_flag.into(),
@@ -314,8 +330,9 @@ mod tests {
         assert_eq!(flag_of("sources[0]", "--cost"), "--source 1");
         assert_eq!(flag_of("stop.targets[2]", "--cost"), "--target 3");
         assert_eq!(flag_of("cost.dataset", "--cost"), "--cost");
-        assert_eq!(flag_of("cost.shape[1]", "--shape"), "--shape");
-        assert_eq!(flag_of("spacing[1]", "--cost"), "--spacing");
+        assert_eq!(flag_of("cost.shape[1]", "--shape"), "--shape value 2");
+        assert_eq!(flag_of("spacing[1]", "--cost"), "--spacing value 2");
+        assert_eq!(flag_of("spacing", "--cost"), "--spacing");
         assert_eq!(flag_of("stop.max_distance", "--cost"), "--max-distance");
         assert_eq!(flag_of("obstacles", "--cost"), "--obstacles");
     }
