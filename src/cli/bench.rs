@@ -286,6 +286,7 @@ struct Measured {
     mean_error: Option<f64>,
     peak_bytes_per_cell: Option<f64>,
     frozen: usize,
+    sweeps: Option<usize>,
 }
 
 fn measure(case: &Case, repeat: u32) -> Result<Measured, String> {
@@ -341,6 +342,7 @@ fn measure(case: &Case, repeat: u32) -> Result<Measured, String> {
         mean_error: max.map(|_| sum / count.max(1) as f64),
         peak_bytes_per_cell: peak,
         frozen: out.frozen,
+        sweeps: out.sweeps,
     })
 }
 
@@ -384,6 +386,7 @@ fn record(case: &Case, repeat: u32, m: Result<Measured, String>) -> serde_json::
             "order": if case.order == Order::First { 1 } else { 2 },
             "cells": cells,
             "frozen": m.frozen,
+            "sweeps": m.sweeps,
             "repeat": repeat,
             "seconds": m.seconds,
             "ns_per_cell": m.seconds * 1e9 / cells as f64,
