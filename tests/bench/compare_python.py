@@ -28,6 +28,12 @@ Cases (the same grids as `geodex bench`, domain [0, 1]^d, h = 1/(N-1)):
 Errors are max and mean |U - exact| over all cells; times are the best of
 --repeat runs of the solver call alone (phi and the speed array are built
 beforehand).
+
+Side by side with geodex (the JSON lines of both tools in one table):
+
+    cargo run --release -- bench --json > /tmp/geodex.jsonl
+    /tmp/geodex-bench/bin/python tests/bench/compare_python.py --json > /tmp/python.jsonl
+    python3 tests/bench/compare_python.py --render /tmp/geodex.jsonl /tmp/python.jsonl
 """
 
 import argparse
@@ -35,7 +41,10 @@ import json
 import sys
 import time
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:  # --render needs only the standard library
+    np = None
 
 
 def best_time(fn, repeat):
@@ -121,8 +130,44 @@ def poincare_cases(eikonalfm, n):
     return out
 
 
-def main():
+def print_table(rows):
+    print(
+        f"{'tool':<11} {'case':<28} {'method':<34} {'cells':>10} {'best_s':>9} "
+        f"{'ns/cell':>8} {'max_err':>9} {'mean_err':>9} {'B/cell':>7}"
+    )
+    for r in rows:
+        if "error" in r:
+            print(f"{r['tool']:<11} {r['case']:<28} error: {r['error']}")
+            continue
+
+        def e(k):
+            return "-" if r.get(k) is None else f"{r[k]:.2e}"
+
+        b = r.get("peak_bytes_per_cell")
+        print(
+            f"{r['tool']:<11} {r['case']:<28} {r['method']:<34} {r['cells']:>10} "
+            f"{r['seconds']:>9.4f} {r['ns_per_cell']:>8.1f} {e('max_error'):>9} "
+            f"{e('mean_error'):>9} {'-' if b is None else f'{b:.1f}':>7}"
+        )
+
+
+def render(paths):
+    """Prints the JSON lines of several files as one table, sorted by case."""
     rows = []
+    for path in paths:
+        with open(path) as f:
+            rows += [json.loads(line) for line in f if line.startswith("{")]
+    rows.sort(key=lambda r: (r["case"], r["tool"]))
+    print_table(rows)
+
+
+def main():
+    if ARGS.render:
+        render(ARGS.render)
+        return
+    rows = []
+    if np is None:
+        sys.exit("compare_python: numpy is missing (see the module docstring)")
     try:
         import skfmm
     except ImportError:
@@ -142,16 +187,7 @@ def main():
             if not ARGS.table:
                 print(json.dumps(row), flush=True)
     if ARGS.table:
-        print(
-            f"{'tool':<11} {'case':<24} {'method':<34} {'cells':>10} {'best_s':>9} "
-            f"{'ns/cell':>8} {'max_err':>9} {'mean_err':>9}"
-        )
-        for r in rows:
-            print(
-                f"{r['tool']:<11} {r['case']:<24} {r['method']:<34} {r['cells']:>10} "
-                f"{r['seconds']:>9.4f} {r['ns_per_cell']:>8.1f} {r['max_error']:>9.2e} "
-                f"{r['mean_error']:>9.2e}"
-            )
+        print_table(rows)
 
 
 if __name__ == "__main__":
@@ -159,5 +195,9 @@ if __name__ == "__main__":
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs")
     parser.add_argument("--quick", action="store_true", help="small grids only")
     parser.add_argument("--table", action="store_true", help="a table instead of JSON lines")
+    parser.add_argument("--json", action="store_true", help="JSON lines (the default)")
+    parser.add_argument(
+        "--render", nargs="+", metavar="JSONL", help="print JSON-lines files as one table and exit"
+    )
     ARGS = parser.parse_args()
     main()
