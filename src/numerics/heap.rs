@@ -130,16 +130,39 @@ impl IndexedHeap {
     }
 
     /// Removes and returns the entry with the smallest key.
+    ///
+    /// Bottom-up deletion (Floyd): the hole left at the root walks down to a
+    /// leaf along the smaller children (one branch-free comparison per
+    /// level), then the last entry is sifted up from there (usually a step or
+    /// two, since it came from the bottom).
     #[inline]
     pub fn pop(&mut self) -> Option<(u32, f64)> {
         let last = self.entries.pop()?;
-        let top = match self.entries.first() {
-            Some(&top) => {
-                self.sift_down(0, last);
-                top
-            }
-            None => last,
+        let Some(&top) = self.entries.first() else {
+            self.pos[last.id as usize] = ABSENT;
+            return Some((last.id, last.key));
         };
+        let n = self.entries.len();
+        let mut p = 0;
+        loop {
+            let l = 2 * p + 1;
+            if l + 1 < n {
+                let c = l + usize::from(self.entries[l + 1].key < self.entries[l].key);
+                let ce = self.entries[c];
+                self.entries[p] = ce;
+                self.pos[ce.id as usize] = p as u32;
+                p = c;
+            } else {
+                if l < n {
+                    let ce = self.entries[l];
+                    self.entries[p] = ce;
+                    self.pos[ce.id as usize] = p as u32;
+                    p = l;
+                }
+                break;
+            }
+        }
+        self.sift_up(p, last);
         self.pos[top.id as usize] = ABSENT;
         Some((top.id, top.key))
     }

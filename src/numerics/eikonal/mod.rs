@@ -121,9 +121,10 @@ pub struct EikonalOptions {
     pub method: Method,
     /// Scheme order (fast marching, fast sweeping). Default: second.
     pub order: Order,
-    /// Static source factoring for point sources (fast marching, order 2):
-    /// the scheme solves for `U / U_0` with `U_0 = W(p)|x - p|`, which removes
-    /// the singularity of `U` at `p`. Default: true.
+    /// Additive source factoring for point sources (fast marching and fast
+    /// sweeping, both orders, on the whole domain): the scheme solves for
+    /// `V = U - U_0` with `U_0 = W(p)|x - p|`, which removes the singularity
+    /// of `U` at `p` (exact for a constant cost). Default: true.
     pub factoring: bool,
     /// Radius, in cells, around a point source inside which cells receive the
     /// exact local value `W(p)|x - p|`. Default: 1.5.

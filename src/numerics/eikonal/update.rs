@@ -45,9 +45,10 @@
 //! An axis with no known neighbour on either side is a discrete minimum of
 //! `U` along that axis. On the grid line nearest to an off-grid source
 //! (`|x_k − p_k| ≤ 1/2`) this is an artefact of the source being between
-//! cells, not a sign that `∂_k U ≈ 0`: there we use `D_k V ≈ 0`, i.e. the
-//! term `(∂_k U_0(x))²` (exact for a constant cost; `O(h)` accurate where `V`
-//! is smooth). Elsewhere a missing axis is dropped as usual.
+//! cells, not a sign that `∂_k U ≈ 0`: there the term `(∂_k U_0(x) + ∂_k V)²`
+//! is kept, with `∂_k V` estimated by the centred difference of `V` at the
+//! most upwind neighbour (0 if that stencil is not known; exact for a
+//! constant cost either way). Elsewhere a missing axis is dropped as usual.
 //!
 //! The factored update is tried only when every upwind neighbour carries the
 //! label of the same point source (mixing two sources' cones near a Voronoi
@@ -334,7 +335,12 @@ fn update_one<K: Fn(usize) -> bool>(
     let w2 = w * w;
 
     if let Some(f) = factor {
-        if let Some(r) = factored(st, idx, w2, ax, &missing[..nmissing], labels, f) {
+        let strip = Strip {
+            missing: &missing[..nmissing],
+            u,
+            known: &known,
+        };
+        if let Some(r) = factored(st, idx, w2, ax, &strip, labels, f) {
             return Some(cap(st, ax, w, cost, r, labels));
         }
     }
@@ -426,12 +432,12 @@ fn label_of(t: &[Term], labels: &[i32]) -> i32 {
 
 /// The factored update (see the module documentation), or `None` to fall back.
 #[inline]
-fn factored(
+fn factored<K: Fn(usize) -> bool>(
     st: &Stencil,
     idx: [usize; 3],
     w2: f64,
     ax: &[Axis],
-    missing: &[usize],
+    strip: &Strip<'_, K>,
     labels: &[i32],
     f: &Factor,
 ) -> Option<(f64, i32)> {
@@ -454,9 +460,10 @@ fn factored(
     // ∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h (physical derivative).
     let g = d.map(|dk| wp * dk / r);
     let mut rhs = w2;
-    for &k in missing {
+    for &k in strip.missing {
         if (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
-            rhs -= g[k] * g[k];
+            let dv = strip.dv(st, idx, ax, k, d, wp, label, labels);
+            rhs -= (g[k] + dv) * (g[k] + dv);
         }
     }
     if rhs.is_nan() || rhs <= 0.0 {
@@ -491,6 +498,62 @@ fn factored(
     let active = &t[..m];
     let lowest = active.iter().map(|t| t.a1).fold(f64::INFINITY, f64::min);
     (v.is_finite() && v >= lowest).then(|| (v, label_of(active, labels)))
+}
+
+/// What the strip rule needs to estimate `∂_k V` at a cell with no known
+/// neighbour along axis `k`.
+struct Strip<'a, K> {
+    missing: &'a [usize],
+    u: &'a [f64],
+    known: &'a K,
+}
+
+impl<K: Fn(usize) -> bool> Strip<'_, K> {
+    /// `∂_k V(x)`, estimated by the centred difference of `V` along `k` at
+    /// the most upwind neighbour `y` of `x` (an `O(h)` estimate at `x`),
+    /// or 0 when `y ± e_k` are not both known with the same label.
+    ///
+    /// Zero would be exact for a constant cost but makes an `O(h^1.5)` error
+    /// where the rays bend (the strip then reaches `~√(h R)` from the source,
+    /// `R` the rays' radius of curvature).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn dv(
+        &self,
+        st: &Stencil,
+        idx: [usize; 3],
+        ax: &[Axis],
+        k: usize,
+        d: [f64; 3],
+        wp: f64,
+        label: i32,
+        labels: &[i32],
+    ) -> f64 {
+        let Some(a) = ax.iter().min_by(|a, b| a.a1.total_cmp(&b.a1)) else {
+            return 0.0;
+        };
+        if idx[k] == 0 || idx[k] + 1 >= st.shape[k] {
+            return 0.0;
+        }
+        let s = st.strides[k];
+        let y = a.j1;
+        let (lo, hi) = (y - s, y + s);
+        if !((self.known)(lo) && (self.known)(hi) && labels[lo] == label && labels[hi] == label) {
+            return 0.0;
+        }
+        // x − p of y, then of y ∓ e_k (physical).
+        let mut dy = d;
+        dy[a.k] += a.sigma * st.h[a.k];
+        let hk = st.h[k];
+        let r_at = |delta: f64| {
+            let mut q = dy;
+            q[k] += delta;
+            wp * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+        };
+        let v_lo = self.u[lo] - r_at(-hk);
+        let v_hi = self.u[hi] - r_at(hk);
+        (v_hi - v_lo) / (2.0 * hk)
+    }
 }
 
 /// Solves `Σ c2_k ((U − b_k)⁺)² = rhs` (`rhs > 0`): sorts the terms by `b`
