@@ -1,8 +1,202 @@
 //! Start-up: builds the application from its settings and serves it.
+//!
+//! ```no_run
+//! # async fn run() -> anyhow::Result<()> {
+//! let settings = geodex::config::ServeArgs {
+//!     addr: "127.0.0.1:0".parse()?,
+//!     ..Default::default()
+//! };
+//! let app = geodex::app::Application::build(settings).await?;
+//! println!("listening on port {}", app.port());
+//! app.run_until_stopped().await?;
+//! # Ok(()) }
+//! ```
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::net::TcpListener;
 
 use crate::config::ServeArgs;
+use crate::datasets::{DatasetStore, StoreConfig};
+use crate::http::{self, AppState};
+use crate::io::Limits;
+use crate::ops::OpLimits;
+use crate::pool::SolverPool;
+use crate::telemetry;
 
-/// Runs the service until SIGTERM or Ctrl-C.
+type Signal = Pin<Box<dyn Future<Output = ()> + Send>>;
+
+/// A bound, ready-to-run service.
+pub struct Application {
+    listener: TcpListener,
+    router: axum::Router,
+    state: AppState,
+    grace: Duration,
+    sweep_every: Duration,
+    shutdown: Signal,
+}
+
+impl std::fmt::Debug for Application {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Application")
+            .field("addr", &self.listener.local_addr().ok())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Application {
+    /// Opens the data directory, starts the solver pool and binds the listener
+    /// (port 0 picks a free port). Does not serve yet.
+    pub async fn build(settings: ServeArgs) -> anyhow::Result<Self> {
+        let metrics = telemetry::metrics_handle();
+        let store = DatasetStore::open(StoreConfig {
+            data_dir: settings.data_dir.clone(),
+            quota_bytes: settings.storage_quota_bytes,
+            ttl: Duration::from_secs(settings.dataset_ttl_secs),
+            cache_bytes: settings.cache_bytes,
+            limits: io_limits(&settings),
+        })
+        .with_context(|| format!("opening the data directory {}", settings.data_dir.display()))?;
+        let pool = SolverPool::new(settings.threads(), settings.capacity())
+            .context("starting the solver pool")?;
+        let state = AppState {
+            store: Arc::new(store),
+            pool: Arc::new(pool),
+            op_limits: OpLimits {
+                max_cells: settings.max_cells,
+                ..OpLimits::default()
+            },
+            io_limits: io_limits(&settings),
+            solve_timeout: settings.request_timeout(),
+            draining: Arc::new(AtomicBool::new(false)),
+            metrics,
+        };
+        let router = http::router(state.clone(), &settings);
+        let listener = TcpListener::bind(settings.addr)
+            .await
+            .with_context(|| format!("binding {}", settings.addr))?;
+        let ttl = settings.dataset_ttl_secs.max(1);
+        Ok(Self {
+            listener,
+            router,
+            state,
+            grace: Duration::from_secs(settings.shutdown_grace_secs),
+            sweep_every: Duration::from_secs((ttl / 4).clamp(1, 300)),
+            shutdown: Box::pin(shutdown_signal()),
+        })
+    }
+
+    /// The bound port.
+    pub fn port(&self) -> u16 {
+        self.local_addr().map_or(0, |a| a.port())
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> std::io::Result<SocketAddr> {
+        self.listener.local_addr()
+    }
+
+    /// Replaces the shutdown trigger (default: SIGTERM or Ctrl-C).
+    pub fn with_shutdown(mut self, signal: impl Future<Output = ()> + Send + 'static) -> Self {
+        self.shutdown = Box::pin(signal);
+        self
+    }
+
+    /// Serves until the shutdown signal, then stops accepting connections and
+    /// lets in-flight requests finish within the grace period.
+    pub async fn run_until_stopped(self) -> anyhow::Result<()> {
+        let addr = self.local_addr()?;
+        tracing::info!(api = %format!("http://{addr}/v1"), docs = %format!("http://{addr}/docs"),
+            openapi = %format!("http://{addr}/openapi.json"), "geodex listening");
+        let sweeper = tokio::spawn(sweep(self.state.clone(), self.sweep_every));
+        let draining = Arc::clone(&self.state.draining);
+        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+        let shutdown = self.shutdown;
+        let signal = async move {
+            shutdown.await;
+            tracing::info!("shutting down: draining in-flight requests");
+            draining.store(true, Ordering::SeqCst);
+            let _ = stop_tx.send(true);
+        };
+        let server = axum::serve(self.listener, self.router).with_graceful_shutdown(signal);
+        let grace = self.grace;
+        let mut stop_rx = stop_rx;
+        let deadline = async move {
+            let _ = stop_rx.wait_for(|stopped| *stopped).await;
+            tokio::time::sleep(grace).await;
+        };
+        let result = tokio::select! {
+            r = server => r.context("serving HTTP"),
+            () = deadline => {
+                tracing::warn!(?grace, "grace period over; dropping the remaining requests");
+                Ok(())
+            }
+        };
+        sweeper.abort();
+        result
+    }
+}
+
+fn io_limits(settings: &ServeArgs) -> Limits {
+    Limits {
+        max_cells: settings.max_cells,
+        max_bytes: settings.max_cells.saturating_mul(8),
+    }
+}
+
+async fn sweep(state: AppState, every: Duration) {
+    let mut tick = tokio::time::interval(every);
+    loop {
+        tick.tick().await;
+        let n = state.store.sweep_expired().await;
+        if n > 0 {
+            tracing::info!(removed = n, "expired datasets swept");
+        }
+    }
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if tokio::signal::ctrl_c().await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {},
+        () = term => {},
+    }
+}
+
+/// Runs the service until SIGTERM or Ctrl-C (the `geodex serve` command).
 pub fn serve(args: ServeArgs) -> anyhow::Result<()> {
-    anyhow::bail!("the service is not built yet (addr {})", args.addr)
+    telemetry::init_logging(args.log_json);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    let result = runtime.block_on(async move {
+        let app = Application::build(args).await?;
+        app.run_until_stopped().await
+    });
+    // Idle blocking-pool threads would otherwise keep the process alive a few seconds.
+    runtime.shutdown_timeout(Duration::from_secs(1));
+    tracing::info!("stopped");
+    result
 }

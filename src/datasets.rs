@@ -1,1 +1,475 @@
-//! (placeholder: see ARCHITECTURE.md)
+//! The dataset store: arrays kept as canonical NPY files under
+//! `<data_dir>/datasets/<id>/` with a `meta.json` beside them.
+//!
+//! * **Atomic writes.** A dataset is written into a temporary directory and
+//!   renamed into place, so a reader never sees a half-written one.
+//! * **Quota.** The total `byte_size` of stored datasets never exceeds the
+//!   quota; a write that would is refused ([`StoreError::Quota`]).
+//! * **Expiry.** Every dataset expires `ttl` after its creation; an expired
+//!   one is reported as missing and removed by [`DatasetStore::sweep_expired`].
+//! * **Cache.** Decoded arrays are kept in a byte-bounded LRU so repeated
+//!   solves on the same input do not re-read files.
+//!
+//! The `*_blocking` functions do file IO; the async wrappers run them on
+//! tokio's blocking pool.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use chrono::{DateTime, Utc};
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::io::{self, ArrayData, DType, Format, IoError, Limits};
+use crate::ops::InputArray;
+
+/// Whether a dataset is 2D or 3D.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DatasetKind {
+    /// A 2D array.
+    Image,
+    /// A 3D array.
+    Volume,
+}
+
+/// Where a dataset came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum SourceFormat {
+    /// Uploaded as NPY.
+    Npy,
+    /// Uploaded as PNG.
+    Png,
+    /// Uploaded as JPEG.
+    Jpeg,
+    /// Uploaded as TIFF.
+    Tiff,
+    /// Uploaded as NIfTI.
+    Nifti,
+    /// Computed by an operation.
+    Result,
+}
+
+impl From<Format> for SourceFormat {
+    fn from(f: Format) -> Self {
+        match f {
+            Format::Npy => SourceFormat::Npy,
+            Format::Png => SourceFormat::Png,
+            Format::Jpeg => SourceFormat::Jpeg,
+            Format::Tiff => SourceFormat::Tiff,
+            Format::Nifti => SourceFormat::Nifti,
+        }
+    }
+}
+
+/// What the store knows about a dataset (`GET /v1/datasets/{id}`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "id": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44",
+    "kind": "image",
+    "shape": [256, 256],
+    "dtype": "f32",
+    "spacing": null,
+    "byte_size": 262272,
+    "created_at": "2026-11-22T10:00:00Z",
+    "expires_at": "2026-11-23T10:00:00Z",
+    "source_format": "png"
+}))]
+pub struct DatasetMeta {
+    /// The id (`ds_` followed by 32 hex digits).
+    pub id: String,
+    /// `image` (2D) or `volume` (3D).
+    pub kind: DatasetKind,
+    /// Shape, axis 0 first.
+    #[schema(min_items = 2, max_items = 3)]
+    pub shape: Vec<usize>,
+    /// Element type.
+    pub dtype: DType,
+    /// Physical spacing per axis (axis 0 first), when the file carried one.
+    #[schema(min_items = 2, max_items = 3)]
+    pub spacing: Option<Vec<f64>>,
+    /// Bytes it takes in storage (the NPY file).
+    pub byte_size: u64,
+    /// Creation time (UTC).
+    pub created_at: DateTime<Utc>,
+    /// Time after which it is deleted (UTC).
+    pub expires_at: DateTime<Utc>,
+    /// The format it was uploaded in, or `result`.
+    pub source_format: SourceFormat,
+}
+
+/// Why a store operation failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StoreError {
+    /// No dataset with this id (or it expired).
+    #[error("dataset '{0}' not found")]
+    NotFound(String),
+    /// Writing would exceed the storage quota.
+    #[error(
+        "storing {needed} bytes would exceed the storage quota ({used} of {quota} bytes used)"
+    )]
+    Quota {
+        /// Bytes the write needs.
+        needed: u64,
+        /// Bytes in use.
+        used: u64,
+        /// The quota.
+        quota: u64,
+    },
+    /// The stored file could not be decoded or the array encoded.
+    #[error(transparent)]
+    Codec(#[from] IoError),
+    /// A file-system error.
+    #[error("storage IO error: {0}")]
+    Io(String),
+}
+
+impl From<std::io::Error> for StoreError {
+    fn from(e: std::io::Error) -> Self {
+        StoreError::Io(e.to_string())
+    }
+}
+
+/// Settings of a [`DatasetStore`].
+#[derive(Debug, Clone)]
+pub struct StoreConfig {
+    /// The data directory; datasets live under `<root>/datasets`.
+    pub data_dir: PathBuf,
+    /// Largest total `byte_size`.
+    pub quota_bytes: u64,
+    /// Lifetime of a dataset.
+    pub ttl: Duration,
+    /// Largest total size of cached decoded arrays.
+    pub cache_bytes: usize,
+    /// Limits applied when reading stored files back.
+    pub limits: Limits,
+}
+
+#[derive(Debug, Default)]
+struct Index {
+    entries: HashMap<String, DatasetMeta>,
+    used: u64,
+}
+
+#[derive(Debug, Default)]
+struct Cache {
+    entries: HashMap<String, (InputArray, u64)>,
+    bytes: usize,
+    tick: u64,
+}
+
+/// The dataset store; share it as `Arc<DatasetStore>`.
+#[derive(Debug)]
+pub struct DatasetStore {
+    root: PathBuf,
+    config: StoreConfig,
+    index: Mutex<Index>,
+    cache: Mutex<Cache>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A poisoned lock only means a panic elsewhere; the data is still consistent
+    // because every critical section here is a few plain assignments.
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// True if `id` has the shape of a dataset id (and so is safe in a path).
+pub fn valid_id(id: &str) -> bool {
+    id.len() == 35
+        && id.starts_with("ds_")
+        && id[3..]
+            .bytes()
+            .all(|b| b.is_ascii_hexdigit() && !b.is_ascii_uppercase())
+}
+
+fn new_id() -> String {
+    format!("ds_{}", uuid::Uuid::now_v7().simple())
+}
+
+impl DatasetStore {
+    /// Opens (creating it if needed) the store, loads the metadata of the
+    /// datasets already there, and removes leftovers of interrupted writes.
+    pub fn open(config: StoreConfig) -> Result<Self, StoreError> {
+        let root = config.data_dir.join("datasets");
+        std::fs::create_dir_all(&root)?;
+        let mut index = Index::default();
+        for entry in std::fs::read_dir(&root)? {
+            let entry = entry?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if !valid_id(&name) {
+                if name.starts_with(".tmp-") {
+                    let _ = std::fs::remove_dir_all(entry.path());
+                }
+                continue;
+            }
+            let meta = std::fs::read(entry.path().join("meta.json"))
+                .ok()
+                .and_then(|b| serde_json::from_slice::<DatasetMeta>(&b).ok());
+            match meta {
+                Some(m) if m.id == name => {
+                    index.used += m.byte_size;
+                    index.entries.insert(name, m);
+                }
+                _ => {
+                    let _ = std::fs::remove_dir_all(entry.path());
+                }
+            }
+        }
+        Ok(Self {
+            root,
+            config,
+            index: Mutex::new(index),
+            cache: Mutex::new(Cache::default()),
+        })
+    }
+
+    /// The directory holding the datasets.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// Bytes in use and the quota.
+    pub fn usage(&self) -> (u64, u64) {
+        (lock(&self.index).used, self.config.quota_bytes)
+    }
+
+    /// True if the store directory exists and is a directory.
+    pub fn is_usable(&self) -> bool {
+        std::fs::metadata(&self.root).is_ok_and(|m| m.is_dir() && !m.permissions().readonly())
+    }
+
+    /// The metadata of a live dataset.
+    pub fn meta(&self, id: &str) -> Result<DatasetMeta, StoreError> {
+        let index = lock(&self.index);
+        match index.entries.get(id) {
+            Some(m) if m.expires_at > Utc::now() => Ok(m.clone()),
+            _ => Err(StoreError::NotFound(id.into())),
+        }
+    }
+
+    /// Stores an array (blocking): NPY + `meta.json`, written atomically.
+    pub fn create_blocking(
+        &self,
+        array: &ArrayData,
+        spacing: Option<Vec<f64>>,
+        source_format: SourceFormat,
+    ) -> Result<DatasetMeta, StoreError> {
+        let npy = io::encode_npy(array)?;
+        let size = npy.len() as u64;
+        self.reserve(size)?;
+        let id = new_id();
+        let result = self.write(&id, &npy, array, spacing, source_format);
+        let mut index = lock(&self.index);
+        match result {
+            Ok(meta) => {
+                index.entries.insert(id, meta.clone());
+                Ok(meta)
+            }
+            Err(e) => {
+                index.used = index.used.saturating_sub(size);
+                Err(e)
+            }
+        }
+    }
+
+    fn reserve(&self, size: u64) -> Result<(), StoreError> {
+        let mut index = lock(&self.index);
+        if index.used.saturating_add(size) > self.config.quota_bytes {
+            return Err(StoreError::Quota {
+                needed: size,
+                used: index.used,
+                quota: self.config.quota_bytes,
+            });
+        }
+        index.used += size;
+        Ok(())
+    }
+
+    fn write(
+        &self,
+        id: &str,
+        npy: &[u8],
+        array: &ArrayData,
+        spacing: Option<Vec<f64>>,
+        source_format: SourceFormat,
+    ) -> Result<DatasetMeta, StoreError> {
+        let created_at = Utc::now();
+        let ttl = chrono::Duration::from_std(self.config.ttl).unwrap_or(chrono::Duration::MAX);
+        let meta = DatasetMeta {
+            id: id.into(),
+            kind: if array.shape().len() == 3 {
+                DatasetKind::Volume
+            } else {
+                DatasetKind::Image
+            },
+            shape: array.shape().to_vec(),
+            dtype: array.dtype(),
+            spacing,
+            byte_size: npy.len() as u64,
+            created_at,
+            expires_at: created_at
+                .checked_add_signed(ttl)
+                .unwrap_or(DateTime::<Utc>::MAX_UTC),
+            source_format,
+        };
+        let tmp = self.root.join(format!(".tmp-{id}"));
+        let write = || -> Result<(), StoreError> {
+            std::fs::create_dir_all(&tmp)?;
+            std::fs::write(tmp.join("data.npy"), npy)?;
+            let json =
+                serde_json::to_vec_pretty(&meta).map_err(|e| StoreError::Io(e.to_string()))?;
+            std::fs::write(tmp.join("meta.json"), json)?;
+            std::fs::rename(&tmp, self.root.join(id))?;
+            Ok(())
+        };
+        write().inspect_err(|_| {
+            let _ = std::fs::remove_dir_all(&tmp);
+        })?;
+        Ok(meta)
+    }
+
+    /// The NPY bytes of a live dataset (blocking).
+    pub fn read_npy_blocking(&self, id: &str) -> Result<Vec<u8>, StoreError> {
+        self.meta(id)?;
+        std::fs::read(self.root.join(id).join("data.npy")).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => StoreError::NotFound(id.into()),
+            _ => e.into(),
+        })
+    }
+
+    /// The decoded array of a live dataset (blocking), from the cache when
+    /// possible.
+    pub fn load_blocking(&self, id: &str) -> Result<InputArray, StoreError> {
+        let meta = self.meta(id)?;
+        {
+            let mut cache = lock(&self.cache);
+            cache.tick += 1;
+            let tick = cache.tick;
+            if let Some((input, used)) = cache.entries.get_mut(id) {
+                *used = tick;
+                return Ok(input.clone());
+            }
+        }
+        let bytes = self.read_npy_blocking(id)?;
+        let decoded = io::decode(&bytes, Some(Format::Npy), &self.config.limits)?;
+        let input = InputArray {
+            array: Arc::new(decoded.array),
+            spacing: meta.spacing,
+        };
+        self.cache_insert(id, &input);
+        Ok(input)
+    }
+
+    fn cache_insert(&self, id: &str, input: &InputArray) {
+        let size = input.array.nbytes();
+        if size > self.config.cache_bytes {
+            return;
+        }
+        let mut cache = lock(&self.cache);
+        while cache.bytes + size > self.config.cache_bytes {
+            let oldest = cache
+                .entries
+                .iter()
+                .min_by_key(|(_, (_, t))| *t)
+                .map(|(k, _)| k.clone());
+            match oldest.and_then(|k| cache.entries.remove(&k)) {
+                Some((old, _)) => cache.bytes -= old.array.nbytes(),
+                None => break,
+            }
+        }
+        cache.tick += 1;
+        let tick = cache.tick;
+        if let Some((old, _)) = cache.entries.insert(id.into(), (input.clone(), tick)) {
+            cache.bytes -= old.array.nbytes();
+        }
+        cache.bytes += size;
+    }
+
+    /// Deletes a dataset (blocking).
+    pub fn delete_blocking(&self, id: &str) -> Result<(), StoreError> {
+        let meta = {
+            let mut index = lock(&self.index);
+            let meta = index
+                .entries
+                .remove(id)
+                .ok_or_else(|| StoreError::NotFound(id.into()))?;
+            index.used = index.used.saturating_sub(meta.byte_size);
+            meta
+        };
+        {
+            let mut cache = lock(&self.cache);
+            if let Some((old, _)) = cache.entries.remove(id) {
+                cache.bytes -= old.array.nbytes();
+            }
+        }
+        std::fs::remove_dir_all(self.root.join(id))?;
+        if meta.expires_at <= Utc::now() {
+            return Err(StoreError::NotFound(id.into()));
+        }
+        Ok(())
+    }
+
+    /// Removes every expired dataset (blocking); returns how many.
+    pub fn sweep_expired_blocking(&self) -> usize {
+        let now = Utc::now();
+        let expired: Vec<String> = lock(&self.index)
+            .entries
+            .values()
+            .filter(|m| m.expires_at <= now)
+            .map(|m| m.id.clone())
+            .collect();
+        for id in &expired {
+            // An expired dataset reports NotFound once deleted; IO errors are
+            // retried at the next sweep.
+            let _ = self.delete_blocking(id);
+        }
+        expired.len()
+    }
+
+    /// Async [`Self::create_blocking`].
+    pub async fn create(
+        self: &Arc<Self>,
+        array: Arc<ArrayData>,
+        spacing: Option<Vec<f64>>,
+        source_format: SourceFormat,
+    ) -> Result<DatasetMeta, StoreError> {
+        let store = Arc::clone(self);
+        blocking(move || store.create_blocking(&array, spacing, source_format)).await
+    }
+
+    /// Async [`Self::load_blocking`].
+    pub async fn load(self: &Arc<Self>, id: &str) -> Result<InputArray, StoreError> {
+        let store = Arc::clone(self);
+        let id = id.to_string();
+        blocking(move || store.load_blocking(&id)).await
+    }
+
+    /// Async [`Self::delete_blocking`].
+    pub async fn delete(self: &Arc<Self>, id: &str) -> Result<(), StoreError> {
+        let store = Arc::clone(self);
+        let id = id.to_string();
+        blocking(move || store.delete_blocking(&id)).await
+    }
+
+    /// Async [`Self::sweep_expired_blocking`].
+    pub async fn sweep_expired(self: &Arc<Self>) -> usize {
+        let store = Arc::clone(self);
+        blocking(move || Ok(store.sweep_expired_blocking()))
+            .await
+            .unwrap_or(0)
+    }
+}
+
+/// Runs blocking file work on tokio's blocking pool.
+pub async fn blocking<T, F>(f: F) -> Result<T, StoreError>
+where
+    T: Send + 'static,
+    F: FnOnce() -> Result<T, StoreError> + Send + 'static,
+{
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| StoreError::Io(format!("storage task failed: {e}")))?
+}

@@ -1,1 +1,280 @@
-//! (placeholder: see ARCHITECTURE.md)
+//! The solver pool: one dedicated rayon thread pool (threads `solver-N`) that
+//! runs every solve, so CPU work never blocks the async runtime.
+//!
+//! * **Admission.** At most `capacity` solves are admitted at once (waiting +
+//!   running). [`SolverPool::run`] refuses the next one immediately with
+//!   [`PoolError::Busy`] (the HTTP layer answers 503 with `Retry-After`).
+//! * **Bridge.** An admitted job is handed to the pool with `spawn` and its
+//!   result comes back through a `tokio::sync::oneshot` channel.
+//! * **Cancellation.** Each job gets its own cancel flag, passed to the core
+//!   through [`Control`]. It is raised when the deadline passes
+//!   ([`PoolError::Deadline`]) and when the awaiting future is dropped (the
+//!   client went away): a drop guard raises it. A job cancelled while still
+//!   waiting never starts; a running one stops at the solver's next poll, and
+//!   its admission slot is freed when the closure returns.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tokio::sync::{oneshot, OwnedSemaphorePermit, Semaphore};
+
+use crate::numerics::Control;
+use crate::telemetry;
+
+/// Why a job did not produce a result.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PoolError {
+    /// Every admission slot is taken; try again later.
+    #[error("the solver pool is full ({capacity} solves admitted); retry later")]
+    Busy {
+        /// The admission capacity.
+        capacity: usize,
+    },
+    /// The deadline passed before the job finished; it was cancelled.
+    #[error("the solve did not finish within {0:?} and was cancelled")]
+    Deadline(Duration),
+    /// The job panicked or the pool dropped it.
+    #[error("the solve failed unexpectedly")]
+    Lost,
+}
+
+/// How long a job waited and ran.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JobTiming {
+    /// Seconds between admission and the start on a pool thread.
+    pub queue_seconds: f64,
+    /// Seconds the closure ran.
+    pub run_seconds: f64,
+}
+
+/// The dedicated solver pool with admission control.
+#[derive(Debug)]
+pub struct SolverPool {
+    pool: rayon::ThreadPool,
+    permits: Arc<Semaphore>,
+    capacity: usize,
+    threads: usize,
+    waiting: Arc<AtomicUsize>,
+    running: Arc<AtomicUsize>,
+}
+
+/// Raises the cancel flag when dropped (client gone, deadline, or done).
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Decrements a counter and republishes its gauge when dropped.
+struct Count {
+    counter: Arc<AtomicUsize>,
+    gauge: &'static str,
+}
+
+impl Count {
+    fn enter(counter: &Arc<AtomicUsize>, gauge: &'static str) -> Self {
+        let n = counter.fetch_add(1, Ordering::SeqCst) + 1;
+        metrics::gauge!(gauge).set(n as f64);
+        Count {
+            counter: Arc::clone(counter),
+            gauge,
+        }
+    }
+}
+
+impl Drop for Count {
+    fn drop(&mut self) {
+        let n = self.counter.fetch_sub(1, Ordering::SeqCst) - 1;
+        metrics::gauge!(self.gauge).set(n as f64);
+    }
+}
+
+impl SolverPool {
+    /// A pool of `threads` threads named `solver-N`, admitting at most
+    /// `capacity` solves at once.
+    pub fn new(threads: usize, capacity: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
+        let threads = threads.max(1);
+        let capacity = capacity.max(1);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("solver-{i}"))
+            .build()?;
+        Ok(Self {
+            pool,
+            permits: Arc::new(Semaphore::new(capacity)),
+            capacity,
+            threads,
+            waiting: Arc::new(AtomicUsize::new(0)),
+            running: Arc::new(AtomicUsize::new(0)),
+        })
+    }
+
+    /// Admission capacity (waiting + running).
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Pool threads.
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Solves admitted but not started.
+    pub fn waiting(&self) -> usize {
+        self.waiting.load(Ordering::SeqCst)
+    }
+
+    /// Solves running now.
+    pub fn running(&self) -> usize {
+        self.running.load(Ordering::SeqCst)
+    }
+
+    /// True while the pool can take at least one more solve.
+    pub fn has_room(&self) -> bool {
+        self.permits.available_permits() > 0
+    }
+
+    /// Runs `job` on the pool with a deadline, and records its time under
+    /// `operation`. The job receives a [`Control`] whose cancel flag rises at
+    /// the deadline or when this future is dropped.
+    pub async fn run<T, F>(
+        &self,
+        operation: &'static str,
+        deadline: Duration,
+        job: F,
+    ) -> Result<(T, JobTiming), PoolError>
+    where
+        T: Send + 'static,
+        F: FnOnce(&Control<'_>) -> T + Send + 'static,
+    {
+        let permit: OwnedSemaphorePermit = match Arc::clone(&self.permits).try_acquire_owned() {
+            Ok(p) => p,
+            Err(_) => {
+                metrics::counter!(telemetry::REJECTED).increment(1);
+                return Err(PoolError::Busy {
+                    capacity: self.capacity,
+                });
+            }
+        };
+        let admitted = Instant::now();
+        let flag = Arc::new(AtomicBool::new(false));
+        let _guard = CancelOnDrop(Arc::clone(&flag));
+        let (tx, rx) = oneshot::channel();
+        let waiting = Count::enter(&self.waiting, telemetry::QUEUE_DEPTH);
+        let running = Arc::clone(&self.running);
+        self.pool.spawn(move || {
+            let _permit = permit;
+            drop(waiting);
+            if flag.load(Ordering::Relaxed) {
+                return; // cancelled before it started: never run it
+            }
+            let _running = Count::enter(&running, telemetry::IN_FLIGHT);
+            let started = Instant::now();
+            let control = Control::new().with_cancel(&flag);
+            let out = job(&control);
+            let run_seconds = started.elapsed().as_secs_f64();
+            metrics::histogram!(telemetry::SOLVE_SECONDS, "operation" => operation)
+                .record(run_seconds);
+            let timing = JobTiming {
+                queue_seconds: started.duration_since(admitted).as_secs_f64(),
+                run_seconds,
+            };
+            // The receiver is gone when the request was cancelled; nothing to do.
+            let _ = tx.send((out, timing));
+        });
+        match tokio::time::timeout(deadline, rx).await {
+            Ok(Ok(result)) => Ok(result),
+            Ok(Err(_)) => Err(PoolError::Lost),
+            Err(_) => Err(PoolError::Deadline(deadline)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spin_until_cancelled(c: &Control<'_>) -> bool {
+        let t = Instant::now();
+        while !c.is_cancelled() {
+            if t.elapsed() > Duration::from_secs(10) {
+                return false;
+            }
+            std::thread::yield_now();
+        }
+        true
+    }
+
+    #[tokio::test]
+    async fn admits_up_to_capacity_then_refuses() {
+        let pool = Arc::new(SolverPool::new(1, 2).expect("pool"));
+        let (a, b) = {
+            let p1 = Arc::clone(&pool);
+            let p2 = Arc::clone(&pool);
+            (
+                tokio::spawn(async move {
+                    p1.run("t", Duration::from_millis(300), spin_until_cancelled)
+                        .await
+                }),
+                tokio::spawn(async move {
+                    p2.run("t", Duration::from_millis(300), spin_until_cancelled)
+                        .await
+                }),
+            )
+        };
+        // Wait until both are admitted.
+        while pool.has_room() {
+            tokio::task::yield_now().await;
+        }
+        let third = pool.run("t", Duration::from_secs(1), |_| 1).await;
+        assert_eq!(third.map(|r| r.0), Err(PoolError::Busy { capacity: 2 }));
+        for h in [a, b] {
+            let r = h.await.expect("join");
+            assert_eq!(
+                r.map(|r| r.0),
+                Err(PoolError::Deadline(Duration::from_millis(300)))
+            );
+        }
+        // Slots are freed once the cancelled jobs return.
+        let mut ok = None;
+        for _ in 0..200 {
+            match pool.run("t", Duration::from_secs(5), |_| 7).await {
+                Ok((v, _)) => {
+                    ok = Some(v);
+                    break;
+                }
+                Err(PoolError::Busy { .. }) => tokio::time::sleep(Duration::from_millis(10)).await,
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert_eq!(ok, Some(7));
+    }
+
+    #[tokio::test]
+    async fn dropping_the_future_cancels_the_job() {
+        let pool = SolverPool::new(1, 1).expect("pool");
+        let (started_tx, started_rx) = std::sync::mpsc::channel();
+        let (seen_tx, seen_rx) = std::sync::mpsc::channel();
+        let mut fut = Box::pin(pool.run("t", Duration::from_secs(30), move |c| {
+            let _ = started_tx.send(());
+            let cancelled = spin_until_cancelled(c);
+            let _ = seen_tx.send(cancelled);
+        }));
+        // Drive the future until the job runs on the pool, then drop it (as
+        // hyper does when the client disconnects).
+        while started_rx.try_recv().is_err() {
+            tokio::select! {
+                _ = &mut fut => panic!("the job cannot finish before it is cancelled"),
+                () = tokio::time::sleep(Duration::from_millis(5)) => {}
+            }
+        }
+        drop(fut);
+        let cancelled = seen_rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("job ran");
+        assert!(cancelled, "the job saw its cancel flag");
+    }
+}

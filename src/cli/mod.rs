@@ -1,4 +1,6 @@
 //! The `geodex` command line: `serve` (the default), `distance` and `bench`.
+//!
+//! A bare `geodex` (with or without serve flags) runs `geodex serve`.
 
 use std::process::ExitCode;
 
@@ -12,11 +14,19 @@ mod usage;
 
 /// geodex: geodesic distances, minimal paths and segmentations.
 #[derive(Debug, Parser)]
-#[command(name = "geodex", version, about)]
+#[command(
+    name = "geodex",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
 pub struct Cli {
     /// What to do; `serve` when omitted.
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// Settings of the default `serve` command.
+    #[command(flatten)]
+    pub serve: ServeArgs,
 }
 
 /// Subcommands.
@@ -37,19 +47,33 @@ pub fn main() -> ExitCode {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
-        None => match Cli::try_parse_from(["geodex", "serve"]) {
-            Ok(Cli {
-                command: Some(Command::Serve(args)),
-            }) => crate::app::serve(args),
-            Ok(_) => Ok(()),
-            Err(e) => e.exit(),
-        },
+        None => crate::app::serve(cli.serve),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("geodex: {e:#}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bare_flags_and_serve_subcommand_both_parse() {
+        let cli = Cli::try_parse_from(["geodex", "--addr", "127.0.0.1:9", "--cors-origins", "a,b"])
+            .expect("bare flags");
+        assert!(cli.command.is_none());
+        assert_eq!(cli.serve.addr.port(), 9);
+        assert_eq!(cli.serve.cors_origins, ["a", "b"]);
+        let cli = Cli::try_parse_from(["geodex", "serve", "--request-timeout-secs", "0.5"])
+            .expect("serve");
+        match cli.command {
+            Some(Command::Serve(a)) => assert_eq!(a.request_timeout_secs, 0.5),
+            other => panic!("{other:?}"),
         }
     }
 }

@@ -1,1 +1,83 @@
-//! The HTTP layer: router, errors, OpenAPI.
+//! The HTTP layer: router, problem+json errors, extractors, the OpenAPI contract.
+//!
+//! Handlers only decode, validate, call an operation on the solver pool and
+//! encode; the work itself lives in [`crate::ops`], [`crate::datasets`] and
+//! [`crate::pool`].
+//!
+//! * [`error`]: [`error::Problem`] (RFC 9457) and [`error::ApiError`].
+//! * [`extract`]: extractors whose rejections are problems.
+//! * [`openapi`]: document metadata and reusable error responses.
+//! * [`layers`]: middleware (request metrics, the tower stack).
+//! * [`routes`]: one module per group of endpoints.
+
+pub mod error;
+pub mod extract;
+pub mod layers;
+pub mod openapi;
+pub mod routes;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use metrics_exporter_prometheus::PrometheusHandle;
+use utoipa::OpenApi;
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
+
+use crate::datasets::DatasetStore;
+use crate::io::Limits;
+use crate::ops::OpLimits;
+use crate::pool::SolverPool;
+
+/// What every handler can reach.
+#[derive(Debug, Clone)]
+pub struct AppState {
+    /// Stored datasets.
+    pub store: Arc<DatasetStore>,
+    /// The solver pool.
+    pub pool: Arc<SolverPool>,
+    /// Limits of operations.
+    pub op_limits: OpLimits,
+    /// Limits of the codecs.
+    pub io_limits: Limits,
+    /// Deadline of one solve.
+    pub solve_timeout: Duration,
+    /// Raised on SIGTERM / Ctrl-C: `/readyz` answers 503.
+    pub draining: Arc<AtomicBool>,
+    /// The Prometheus registry.
+    pub metrics: PrometheusHandle,
+}
+
+impl AppState {
+    /// True once shutdown began.
+    pub fn is_draining(&self) -> bool {
+        self.draining.load(Ordering::Relaxed)
+    }
+}
+
+/// The routes that the OpenAPI document describes.
+pub fn api_router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(openapi::ApiDoc::openapi())
+        .routes(routes!(routes::datasets::upload))
+        .routes(routes!(
+            routes::datasets::get_meta,
+            routes::datasets::delete
+        ))
+        .routes(routes!(routes::datasets::get_data))
+        .routes(routes!(routes::grid::distance))
+        .routes(routes!(routes::health::healthz))
+        .routes(routes!(routes::health::readyz))
+        .routes(routes!(routes::health::metrics))
+}
+
+/// The complete application: API routes, `/openapi.json`, `/docs`, the
+/// fallback and every middleware layer.
+pub fn router(state: AppState, settings: &crate::config::ServeArgs) -> axum::Router {
+    let (api, doc) = api_router().split_for_parts();
+    let app = api
+        .merge(routes::docs::router(doc))
+        .fallback(error::fallback)
+        .with_state(state);
+    layers::apply(app, settings)
+}

@@ -1,0 +1,239 @@
+//! The OpenAPI 3.1 contract: document-level information, and reusable
+//! problem+json responses (one per status) with examples.
+//!
+//! The paths come from the `#[utoipa::path]` annotations of the handlers,
+//! collected by `utoipa_axum` when the router is built ([`document`]).
+
+use utoipa::{OpenApi, ToResponse};
+
+use super::error::Problem;
+
+/// Description shared by the document and the grid operations.
+pub const COORDINATES: &str = "Point coordinates are in array index order (axis 0 first), \
+in index units (cell centres are at integer indices), with a separate per-axis `spacing` \
+giving the physical size of a cell along each axis.";
+
+/// Document-level information, tags and shared components.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "geodex",
+        description = "Geodesic distances, minimal paths and segmentations on 2D and 3D grids.\n\n\
+Upload arrays as datasets (`POST /v1/datasets`), run operations on them (`POST /v1/grid/distance`), \
+and download the results in the format you need (`GET /v1/datasets/{id}/data`). \
+Point coordinates are in array index order (axis 0 first), in index units (cell centres are at \
+integer indices), with a separate per-axis `spacing` giving the physical size of a cell along each axis.\n\n\
+Every error is an RFC 9457 `application/problem+json` document naming the offending field.",
+        license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0"),
+    ),
+    tags(
+        (name = "datasets", description = "Upload, inspect, download and delete arrays."),
+        (name = "grid", description = "Operations on 2D and 3D grids."),
+        (name = "operations", description = "Health, readiness and metrics."),
+    ),
+    components(
+        schemas(Problem, FileBytes),
+        responses(
+            BadRequest,
+            NotFound,
+            NotAcceptable,
+            PayloadTooLarge,
+            UnsupportedMediaType,
+            Unprocessable,
+            InternalError,
+            Busy,
+            DeadlineExceeded,
+            InsufficientStorage,
+        )
+    )
+)]
+pub struct ApiDoc;
+
+/// The body cannot be parsed: malformed JSON, a corrupt or truncated file, a bad path or query.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/malformed-request",
+        "title": "The request cannot be parsed",
+        "status": 400,
+        "detail": "body: corrupt Npy file: the header is truncated",
+        "instance": "/v1/datasets",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "body"
+    })
+)]
+pub struct BadRequest(#[allow(dead_code)] Problem);
+
+/// A dataset named by the request (or the path) does not exist or has expired.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/not-found",
+        "title": "The resource does not exist",
+        "status": 404,
+        "detail": "cost.dataset: dataset 'ds_0192f1b27c1e7d3a9d553c0f2b8a1e44' does not exist (or has expired)",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "cost.dataset"
+    })
+)]
+pub struct NotFound(#[allow(dead_code)] Problem);
+
+/// The representation asked for (`Accept` or `?format=`) cannot be produced for this array.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/not-acceptable",
+        "title": "The requested representation is not available",
+        "status": 406,
+        "detail": "json is only offered for arrays of at most 65536 cells; this one has 262144",
+        "instance": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e44/data",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "Accept"
+    })
+)]
+pub struct NotAcceptable(#[allow(dead_code)] Problem);
+
+/// The body, the array or the grid is larger than the configured limits.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/too-large",
+        "title": "The request is larger than the limits",
+        "status": 413,
+        "detail": "the body is larger than the configured limit",
+        "instance": "/v1/datasets",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "body"
+    })
+)]
+pub struct PayloadTooLarge(#[allow(dead_code)] Problem);
+
+/// The media type of the body is not accepted (or the file format is not recognised).
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/unsupported-media-type",
+        "title": "The media type of the body is not supported",
+        "status": 415,
+        "detail": "text/plain is not an accepted upload type",
+        "instance": "/v1/datasets",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "Content-Type"
+    })
+)]
+pub struct UnsupportedMediaType(#[allow(dead_code)] Problem);
+
+/// The request is well-formed but a value is refused (NaN or negative cost, spacing <= 0,
+/// a source outside the grid or on an obstacle, a 1D or 4D array, an unknown field).
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/invalid-field",
+        "title": "A field of the request is invalid",
+        "status": 422,
+        "detail": "sources[0]: the point [300.0, 12.0] is outside the grid of shape [256, 256]",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "sources[0]"
+    })
+)]
+pub struct Unprocessable(#[allow(dead_code)] Problem);
+
+/// An unexpected failure; the details are in the server log under the request id.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/internal",
+        "title": "Internal server error",
+        "status": 500,
+        "detail": "the server failed to handle the request; see its logs",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44"
+    })
+)]
+pub struct InternalError(#[allow(dead_code)] Problem);
+
+/// The solver pool is full (or the service is draining); retry after `Retry-After` seconds.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    headers(("Retry-After" = u64, description = "Seconds to wait before retrying.")),
+    example = json!({
+        "type": "https://geodex.dev/problems/busy",
+        "title": "The service is busy",
+        "status": 503,
+        "detail": "the solver pool is full (8 solves admitted); retry later",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44"
+    })
+)]
+pub struct Busy(#[allow(dead_code)] Problem);
+
+/// The solve did not finish before the request deadline and was cancelled.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/deadline-exceeded",
+        "title": "The computation did not finish in time",
+        "status": 504,
+        "detail": "the solve did not finish within 60s and was cancelled",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44"
+    })
+)]
+pub struct DeadlineExceeded(#[allow(dead_code)] Problem);
+
+/// The storage quota is used up; delete datasets or wait for them to expire.
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/storage-full",
+        "title": "The storage quota is used up",
+        "status": 507,
+        "detail": "storing 524416 bytes would exceed the storage quota (8589672000 of 8589934592 bytes used)",
+        "instance": "/v1/grid/distance",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44"
+    })
+)]
+pub struct InsufficientStorage(#[allow(dead_code)] Problem);
+
+/// Raw file bytes: the schema of binary request and response bodies
+/// (`type: string, format: binary`).
+pub struct FileBytes;
+
+impl utoipa::PartialSchema for FileBytes {
+    fn schema() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+        use utoipa::openapi::schema::{KnownFormat, ObjectBuilder, SchemaFormat, Type};
+        ObjectBuilder::new()
+            .schema_type(Type::String)
+            .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+            .description(Some("Raw file bytes."))
+            .into()
+    }
+}
+
+impl utoipa::ToSchema for FileBytes {}
+
+/// The whole OpenAPI document (paths from the router, plus [`ApiDoc`]).
+pub fn document() -> utoipa::openapi::OpenApi {
+    super::api_router().into_openapi()
+}
+
+/// The document as pretty JSON with a trailing newline (what `api/openapi.json` holds).
+pub fn document_json() -> String {
+    let mut s = document()
+        .to_pretty_json()
+        .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
+    s.push('\n');
+    s
+}

@@ -1,0 +1,367 @@
+//! `/v1/datasets`: upload an array, read its metadata, download it in another
+//! format, delete it.
+
+use std::sync::Arc;
+
+use axum::extract::State;
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use crate::datasets::{valid_id, DatasetMeta, StoreError};
+use crate::http::error::{io_error, ApiError};
+use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
+use crate::http::AppState;
+use crate::io::{self, ArrayData, Decoded, Format, Limits};
+
+/// Largest array offered as JSON.
+pub const JSON_MAX_CELLS: usize = 65_536;
+
+/// Format of an upload, overriding the `Content-Type`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum UploadFormat {
+    /// NumPy `.npy`.
+    Npy,
+    /// PNG (8 or 16 bit).
+    Png,
+    /// JPEG.
+    Jpeg,
+    /// TIFF (including 32-bit float).
+    Tiff,
+    /// NIfTI-1 (`.nii` or `.nii.gz`).
+    Nifti,
+}
+
+impl From<UploadFormat> for Format {
+    fn from(f: UploadFormat) -> Self {
+        match f {
+            UploadFormat::Npy => Format::Npy,
+            UploadFormat::Png => Format::Png,
+            UploadFormat::Jpeg => Format::Jpeg,
+            UploadFormat::Tiff => Format::Tiff,
+            UploadFormat::Nifti => Format::Nifti,
+        }
+    }
+}
+
+/// Query of an upload.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct UploadQuery {
+    /// The file format; default: from `Content-Type`, else detected from the bytes.
+    #[param(inline)]
+    pub format: Option<UploadFormat>,
+}
+
+/// Representation of a download.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum OutputFormat {
+    /// NumPy `.npy`, exact (`application/x-npy`).
+    Npy,
+    /// 32-bit float TIFF (`image/tiff`).
+    Tiff,
+    /// 16-bit grey PNG, values scaled to the finite range (`image/png`).
+    Png16,
+    /// Colour-mapped PNG for people, with iso-distance lines on distance maps (`image/png`).
+    Png,
+    /// JSON `{shape, dtype, data}` with `data` flat in C order (`null` for non-finite values);
+    /// only for arrays of at most 65536 cells.
+    Json,
+}
+
+/// Query of a download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct DataQuery {
+    /// The representation; default: from `Accept`, else `npy`.
+    #[param(inline)]
+    pub format: Option<OutputFormat>,
+}
+
+/// A small array as JSON.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ArrayJson {
+    /// Shape, axis 0 first.
+    pub shape: Vec<usize>,
+    /// Element type.
+    pub dtype: io::DType,
+    /// Values in C order (last axis fastest); `null` stands for a non-finite value.
+    pub data: Vec<Option<f64>>,
+}
+
+/// The id of a dataset, in the path.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct DatasetPath {
+    /// Dataset id (`ds_` followed by 32 hex digits).
+    pub id: String,
+}
+
+/// The format named by a `Content-Type`: `Ok(None)` means "detect".
+pub fn format_from_content_type(headers: &HeaderMap) -> Result<Option<Format>, ApiError> {
+    let Some(ct) = headers.get(header::CONTENT_TYPE) else {
+        return Ok(None);
+    };
+    Format::from_media_type(ct.to_str().unwrap_or("?"))
+        .map_err(|e| ApiError::unsupported_media_type(e.to_string()))
+}
+
+/// Decodes uploaded bytes off the async threads and checks that the array is
+/// 2D or 3D. `field` names the input in errors.
+pub async fn decode_upload(
+    bytes: bytes::Bytes,
+    hint: Option<Format>,
+    limits: Limits,
+    field: &'static str,
+) -> Result<Decoded, ApiError> {
+    let decoded = tokio::task::spawn_blocking(move || io::decode(&bytes, hint, &limits))
+        .await
+        .map_err(ApiError::internal)?
+        .map_err(|e| io_error(e, field))?;
+    let ndim = decoded.array.shape().len();
+    if !(2..=3).contains(&ndim) {
+        return Err(ApiError::invalid_field(
+            field,
+            format!(
+                "the array has {ndim} axes (shape {:?}); only 2D and 3D arrays are accepted",
+                decoded.array.shape()
+            ),
+        ));
+    }
+    Ok(decoded)
+}
+
+fn check_id(id: &str) -> Result<(), ApiError> {
+    if valid_id(id) {
+        Ok(())
+    } else {
+        Err(StoreError::NotFound(id.into()).into())
+    }
+}
+
+/// Uploads an array and stores it as a dataset.
+#[utoipa::path(
+    post,
+    path = "/v1/datasets",
+    tag = "datasets",
+    summary = "Upload an array",
+    description = "Stores the raw body as a dataset: a 2D image or a 3D volume. The format comes from `?format=`, \
+else from `Content-Type`, else it is detected from the first bytes (`application/octet-stream`, `application/gzip`). \
+Colour images are converted to grey. NIfTI voxel sizes become the dataset's `spacing` (axis 0 first). \
+The array is stored once as canonical NPY; sizes are checked before anything is allocated.",
+    params(UploadQuery),
+    request_body(
+        description = "The file: NPY, PNG, JPEG, TIFF or NIfTI (`.nii` or `.nii.gz`).",
+        content(
+            (crate::http::openapi::FileBytes = "application/x-npy"),
+            (crate::http::openapi::FileBytes = "image/png"),
+            (crate::http::openapi::FileBytes = "image/jpeg"),
+            (crate::http::openapi::FileBytes = "image/tiff"),
+            (crate::http::openapi::FileBytes = "application/x-nifti"),
+            (crate::http::openapi::FileBytes = "application/gzip"),
+            (crate::http::openapi::FileBytes = "application/octet-stream"),
+        )
+    ),
+    responses(
+        (status = 201, description = "Stored; `Location` names the new dataset.", body = DatasetMeta,
+            headers(("Location" = String, description = "URL of the new dataset."))),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn upload(
+    State(state): State<AppState>,
+    ApiQuery(query): ApiQuery<UploadQuery>,
+    headers: HeaderMap,
+    ApiBytes(body): ApiBytes,
+) -> Result<Response, ApiError> {
+    let hint = match query.format {
+        Some(f) => Some(f.into()),
+        None => format_from_content_type(&headers)?,
+    };
+    if body.is_empty() {
+        return Err(ApiError::bad_request("body", "body: the body is empty"));
+    }
+    let decoded = decode_upload(body, hint, state.io_limits, "body").await?;
+    let meta = state
+        .store
+        .create(
+            Arc::new(decoded.array),
+            decoded.spacing,
+            decoded.format.into(),
+        )
+        .await?;
+    let location = format!("/v1/datasets/{}", meta.id);
+    let mut res = (StatusCode::CREATED, Json(meta)).into_response();
+    if let Ok(v) = HeaderValue::from_str(&location) {
+        res.headers_mut().insert(header::LOCATION, v);
+    }
+    Ok(res)
+}
+
+/// Metadata of a dataset.
+#[utoipa::path(
+    get,
+    path = "/v1/datasets/{id}",
+    tag = "datasets",
+    summary = "Dataset metadata",
+    description = "Shape (axis 0 first), dtype, spacing, size, creation and expiry times of a dataset.",
+    params(DatasetPath),
+    responses(
+        (status = 200, description = "The metadata.", body = DatasetMeta),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn get_meta(
+    State(state): State<AppState>,
+    ApiPath(path): ApiPath<DatasetPath>,
+) -> Result<Json<DatasetMeta>, ApiError> {
+    check_id(&path.id)?;
+    Ok(Json(state.store.meta(&path.id)?))
+}
+
+/// Deletes a dataset.
+#[utoipa::path(
+    delete,
+    path = "/v1/datasets/{id}",
+    tag = "datasets",
+    summary = "Delete a dataset",
+    description = "Removes the dataset and its files; its storage counts against the quota no more.",
+    params(DatasetPath),
+    responses(
+        (status = 204, description = "Deleted."),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn delete(
+    State(state): State<AppState>,
+    ApiPath(path): ApiPath<DatasetPath>,
+) -> Result<StatusCode, ApiError> {
+    check_id(&path.id)?;
+    state.store.delete(&path.id).await?;
+    Ok(StatusCode::NO_CONTENT)
+}
+
+/// The representation asked for by `?format=` or `Accept` (default NPY).
+pub fn negotiate(query: Option<OutputFormat>, headers: &HeaderMap) -> OutputFormat {
+    if let Some(f) = query {
+        return f;
+    }
+    let accept = headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    for item in accept.split(',') {
+        let essence = item.split(';').next().unwrap_or("").trim();
+        match essence {
+            "application/x-npy" | "application/npy" | "application/octet-stream" => {
+                return OutputFormat::Npy
+            }
+            "image/tiff" => return OutputFormat::Tiff,
+            "image/png" => return OutputFormat::Png,
+            "application/json" => return OutputFormat::Json,
+            _ => {}
+        }
+    }
+    OutputFormat::Npy
+}
+
+fn to_json(array: &ArrayData) -> Result<Vec<u8>, ApiError> {
+    if array.len() > JSON_MAX_CELLS {
+        return Err(ApiError::not_acceptable(format!(
+            "json is only offered for arrays of at most {JSON_MAX_CELLS} cells; this one has {}; use npy or tiff",
+            array.len()
+        )));
+    }
+    let data = (0..array.len())
+        .map(|i| array.get_f64(i).filter(|v| v.is_finite()))
+        .collect();
+    let body = ArrayJson {
+        shape: array.shape().to_vec(),
+        dtype: array.dtype(),
+        data,
+    };
+    serde_json::to_vec(&body).map_err(ApiError::internal)
+}
+
+/// Encodes an array in a download format; returns the bytes and media type.
+pub fn encode(
+    array: &ArrayData,
+    format: OutputFormat,
+) -> Result<(Vec<u8>, &'static str), ApiError> {
+    let encoded = match format {
+        OutputFormat::Npy => io::encode_npy(array).map(|b| (b, "application/x-npy")),
+        OutputFormat::Json => return to_json(array).map(|b| (b, "application/json")),
+        OutputFormat::Tiff => io::encode_tiff_f32(array).map(|b| (b, "image/tiff")),
+        OutputFormat::Png16 => io::encode_png16(array, None).map(|b| (b, "image/png")),
+        OutputFormat::Png => {
+            // Float fields (distance maps) get iso-value lines; labels are categorical.
+            let iso = matches!(array, ArrayData::F64(_) | ArrayData::F32(_));
+            let options = io::RenderOptions {
+                iso_lines: iso.then_some(io::IsoLines::Count(10)),
+                ..Default::default()
+            };
+            io::render_png(array, &options).map(|b| (b, "image/png"))
+        }
+    };
+    encoded.map_err(|e| ApiError::not_acceptable(format!("cannot encode this array: {e}")))
+}
+
+/// Downloads a dataset in the format asked for.
+#[utoipa::path(
+    get,
+    path = "/v1/datasets/{id}/data",
+    tag = "datasets",
+    summary = "Download a dataset",
+    description = "The array in the representation named by `?format=`, else by `Accept`, else NPY: \
+`npy` (exact, any dtype), `tiff` (32-bit float), `png16` (16-bit grey scaled to the finite range), \
+`png` (colour-mapped for people; distance maps get iso-distance lines) or `json` \
+(`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406).",
+    params(DatasetPath, DataQuery),
+    responses(
+        (status = 200, description = "The array.",
+            content(
+                (crate::http::openapi::FileBytes = "application/x-npy"),
+                (crate::http::openapi::FileBytes = "image/tiff"),
+                (crate::http::openapi::FileBytes = "image/png"),
+                (ArrayJson = "application/json", example = json!({"shape": [2, 2], "dtype": "f64", "data": [0.0, 1.0, 1.0, 1.5]})),
+            )
+        ),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 406, response = crate::http::openapi::NotAcceptable),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn get_data(
+    State(state): State<AppState>,
+    ApiPath(path): ApiPath<DatasetPath>,
+    ApiQuery(query): ApiQuery<DataQuery>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    check_id(&path.id)?;
+    let format = negotiate(query.format, &headers);
+    let store = state.store.clone();
+    let id = path.id.clone();
+    let (bytes, media) = if format == OutputFormat::Npy {
+        let bytes = crate::datasets::blocking(move || store.read_npy_blocking(&id)).await?;
+        (bytes, "application/x-npy")
+    } else {
+        let input = state.store.load(&path.id).await?;
+        tokio::task::spawn_blocking(move || encode(&input.array, format))
+            .await
+            .map_err(ApiError::internal)??
+    };
+    Ok(([(header::CONTENT_TYPE, media)], bytes).into_response())
+}

@@ -1,0 +1,369 @@
+//! `POST /v1/grid/distance`: the geodesic distance map of a cost on a grid.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::Instant;
+
+use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use super::datasets::{decode_upload, format_from_content_type};
+use crate::datasets::{DatasetMeta, SourceFormat, StoreError};
+use crate::http::error::ApiError;
+use crate::http::extract::{json_rejection, ApiJson, ApiQuery};
+use crate::http::AppState;
+use crate::io::{self, ArrayData, Format};
+use crate::ops::grid_distance::{self, GridDistanceRequest, SolveStats};
+use crate::ops::{InputArray, OpError};
+
+/// Id under which the `file` part of a multipart request is visible.
+pub const FILE_ID: &str = "file";
+
+/// A stored result.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DatasetRef {
+    /// Dataset id.
+    pub id: String,
+    /// URL of its metadata.
+    pub url: String,
+    /// URL of its values (`?format=npy|tiff|png16|png|json`).
+    pub data_url: String,
+    /// Shape, axis 0 first.
+    #[schema(min_items = 2, max_items = 3)]
+    pub shape: Vec<usize>,
+}
+
+impl From<&DatasetMeta> for DatasetRef {
+    fn from(m: &DatasetMeta) -> Self {
+        let url = format!("/v1/datasets/{}", m.id);
+        Self {
+            id: m.id.clone(),
+            data_url: format!("{url}/data"),
+            url,
+            shape: m.shape.clone(),
+        }
+    }
+}
+
+/// Statistics of a distance request.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DistanceStats {
+    /// What the solver reported.
+    #[serde(flatten)]
+    pub solve: SolveStats,
+    /// Seconds the request waited for a pool thread.
+    pub queue_seconds: f64,
+    /// Seconds from the start of the handler to the answer.
+    pub total_seconds: f64,
+}
+
+/// Answer of `POST /v1/grid/distance` (JSON form).
+#[derive(Debug, Serialize, ToSchema)]
+#[schema(example = json!({
+    "distance": {"id": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e45", "url": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e45",
+        "data_url": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e45/data", "shape": [256, 256]},
+    "labels": {"id": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e46", "url": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e46",
+        "data_url": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e46/data", "shape": [256, 256]},
+    "stats": {"cells": 65536, "frozen": 65536, "stop": "completed", "solve_seconds": 0.012,
+        "queue_seconds": 0.0001, "total_seconds": 0.02}
+}))]
+pub struct DistanceResponse {
+    /// The distance map `U` (f64; `+inf` where not reached).
+    pub distance: DatasetRef,
+    /// Voronoi labels (int32; `-1` where not reached), unless `outputs.labels` is false.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub labels: Option<DatasetRef>,
+    /// Freeze ranks (int64; `-1` if never frozen), when `outputs.frozen_order` is true.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frozen_order: Option<DatasetRef>,
+    /// Timings and solver statistics.
+    pub stats: DistanceStats,
+}
+
+/// The one-round-trip form of the request.
+#[derive(Debug, ToSchema)]
+pub struct DistanceForm {
+    /// The cost (or speed) file: NPY, PNG, JPEG, TIFF or NIfTI.
+    #[schema(value_type = String, format = Binary)]
+    pub file: Vec<u8>,
+    /// A `GridDistanceRequest` as JSON; `cost.dataset` omitted or `"file"`.
+    #[schema(value_type = String, example = json!("{\"sources\": [{\"point\": [10, 20]}]}"))]
+    pub params: String,
+}
+
+/// Query of a distance request.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct DistanceQuery {
+    /// `npy` answers with the distance array bytes directly (like `Accept: application/x-npy`).
+    #[param(inline)]
+    pub format: Option<DirectFormat>,
+}
+
+/// Direct answer format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DirectFormat {
+    /// The distance as NPY bytes.
+    Npy,
+    /// The JSON document with dataset links (the default).
+    Json,
+}
+
+/// The body of a distance request: JSON, or multipart with the cost file.
+#[derive(Debug)]
+pub struct DistanceBody {
+    /// The request.
+    pub params: GridDistanceRequest,
+    /// The uploaded file and its format hint (multipart only).
+    pub file: Option<(bytes::Bytes, Option<Format>)>,
+}
+
+fn multipart_error(e: axum::extract::multipart::MultipartError) -> ApiError {
+    if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        ApiError::too_large("body", "the body is larger than the configured limit")
+    } else {
+        ApiError::bad_request("body", format!("body: {}", e.body_text()))
+    }
+}
+
+impl<S: Send + Sync> FromRequest<S> for DistanceBody {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
+        let is_form = req
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| v.to_ascii_lowercase().starts_with("multipart/form-data"));
+        if !is_form {
+            let ApiJson(params) = ApiJson::<GridDistanceRequest>::from_request(req, state).await?;
+            return Ok(Self { params, file: None });
+        }
+        let mut form = Multipart::from_request(req, state)
+            .await
+            .map_err(|e| ApiError::bad_request("body", format!("body: {}", e.body_text())))?;
+        let mut params = None;
+        let mut file = None;
+        while let Some(field) = form.next_field().await.map_err(multipart_error)? {
+            match field.name().unwrap_or("") {
+                "params" => {
+                    let bytes = field.bytes().await.map_err(multipart_error)?;
+                    let bytes = with_file_cost(&bytes);
+                    let parsed = axum::Json::<GridDistanceRequest>::from_bytes(&bytes)
+                        .map_err(|e| prefix_field(json_rejection(e), "params"))?;
+                    params = Some(parsed.0);
+                }
+                "file" => {
+                    let mut headers = HeaderMap::new();
+                    if let Some(ct) = field.content_type().and_then(|c| c.parse().ok()) {
+                        headers.insert(header::CONTENT_TYPE, ct);
+                    }
+                    let hint =
+                        format_from_content_type(&headers).map_err(|e| prefix_field(e, "file"))?;
+                    file = Some((field.bytes().await.map_err(multipart_error)?, hint));
+                }
+                other => {
+                    return Err(ApiError::invalid_field(
+                        other.to_string(),
+                        "unknown part; a form has a `file` part and a `params` part",
+                    ))
+                }
+            }
+        }
+        let params = params.ok_or_else(|| {
+            ApiError::invalid_field("params", "the form has no `params` part (the request JSON)")
+        })?;
+        Ok(Self { params, file })
+    }
+}
+
+/// In a form, `cost` may be omitted (or lack `dataset` and `constant`): it
+/// then names the `file` part. Anything that is not a JSON object is left for
+/// the parser to refuse.
+fn with_file_cost(bytes: &[u8]) -> Vec<u8> {
+    let Ok(serde_json::Value::Object(mut params)) = serde_json::from_slice(bytes) else {
+        return bytes.to_vec();
+    };
+    let cost = params
+        .entry("cost")
+        .or_insert_with(|| serde_json::Value::Object(Default::default()));
+    if let serde_json::Value::Object(cost) = cost {
+        if !cost.contains_key("dataset") && !cost.contains_key("constant") {
+            cost.insert("dataset".into(), FILE_ID.into());
+        }
+    }
+    serde_json::to_vec(&params).unwrap_or_else(|_| bytes.to_vec())
+}
+
+fn prefix_field(mut e: ApiError, prefix: &str) -> ApiError {
+    e.problem.field = Some(match e.problem.field.take() {
+        Some(f) if f != "body" && f != "Content-Type" => format!("{prefix}.{f}"),
+        _ => prefix.to_string(),
+    });
+    e.problem.detail = format!("{prefix}: {}", e.problem.detail);
+    e
+}
+
+fn wants_npy(query: &DistanceQuery, headers: &HeaderMap) -> bool {
+    match query.format {
+        Some(DirectFormat::Npy) => true,
+        Some(DirectFormat::Json) => false,
+        None => headers
+            .get(header::ACCEPT)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|a| a.to_ascii_lowercase().contains("application/x-npy")),
+    }
+}
+
+async fn store_result(
+    state: &AppState,
+    array: ArrayData,
+    spacing: &[f64],
+) -> Result<DatasetRef, ApiError> {
+    let meta = state
+        .store
+        .create(
+            Arc::new(array),
+            Some(spacing.to_vec()),
+            SourceFormat::Result,
+        )
+        .await?;
+    Ok(DatasetRef::from(&meta))
+}
+
+/// Computes a geodesic distance map.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/distance",
+    tag = "grid",
+    summary = "Geodesic distance map on a grid",
+    description = "Solves the eikonal equation |∇U| = W on a 2D or 3D grid with U = 0 at the sources, and \
+returns the distance map and the geodesic Voronoi labels as new datasets. \
+Point coordinates are in array index order (axis 0 first), in index units (cell centres are at integer \
+indices), with a separate per-axis `spacing` giving the physical size of a cell along each axis. \
+The cost is a dataset (`cost.dataset`) or a constant over a shape. \
+One-round-trip form: send `multipart/form-data` with a `file` part (the cost array) and a `params` part \
+(this JSON with `cost.dataset` omitted or `\"file\"`). With `Accept: application/x-npy` (or `?format=npy`) \
+the answer is the distance array itself as NPY. The solve runs on a bounded pool: when it is full the answer \
+is 503 with `Retry-After`; a solve that passes the deadline is cancelled (504).",
+    params(DistanceQuery),
+    request_body(
+        description = "The request (JSON), or a multipart form with the cost file and the request.",
+        content(
+            (GridDistanceRequest = "application/json"),
+            (DistanceForm = "multipart/form-data"),
+        )
+    ),
+    responses(
+        (status = 200, description = "The distance map (and labels) were computed and stored.",
+            content(
+                (DistanceResponse = "application/json"),
+                (crate::http::openapi::FileBytes = "application/x-npy"),
+            )
+        ),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn distance(
+    State(state): State<AppState>,
+    ApiQuery(query): ApiQuery<DistanceQuery>,
+    headers: HeaderMap,
+    body: DistanceBody,
+) -> Result<Response, ApiError> {
+    let started = Instant::now();
+    let direct = wants_npy(&query, &headers);
+    let DistanceBody { params, file } = body;
+    params.validate(&state.op_limits)?;
+
+    let mut inputs: HashMap<String, InputArray> = HashMap::new();
+    if let Some((bytes, hint)) = file {
+        let decoded = decode_upload(bytes, hint, state.io_limits, "file").await?;
+        inputs.insert(
+            FILE_ID.into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: decoded.spacing,
+            },
+        );
+    }
+    for (field, id) in params.dataset_ids() {
+        if inputs.contains_key(id) {
+            continue;
+        }
+        match state.store.load(id).await {
+            Ok(input) => {
+                inputs.insert(id.to_string(), input);
+            }
+            Err(StoreError::NotFound(_)) => {
+                return Err(OpError::UnknownDataset {
+                    field: field.into(),
+                    id: id.into(),
+                }
+                .into())
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+
+    let limits = state.op_limits;
+    let (result, timing) = state
+        .pool
+        .run("grid.distance", state.solve_timeout, move |control| {
+            grid_distance::execute(&params, &inputs, &limits, control)
+        })
+        .await?;
+    let result = result?;
+
+    if direct {
+        let distance = ArrayData::F64(result.distance);
+        let bytes = tokio::task::spawn_blocking(move || io::encode_npy(&distance))
+            .await
+            .map_err(ApiError::internal)?
+            .map_err(ApiError::internal)?;
+        return Ok((
+            [
+                (header::CONTENT_TYPE, "application/x-npy".to_string()),
+                (
+                    header::HeaderName::from_static("x-geodex-stop"),
+                    result.stats.stop.clone(),
+                ),
+            ],
+            bytes,
+        )
+            .into_response());
+    }
+
+    let distance = store_result(&state, ArrayData::F64(result.distance), &result.spacing).await?;
+    let labels = match result.labels {
+        Some(l) => Some(store_result(&state, ArrayData::I32(l), &result.spacing).await?),
+        None => None,
+    };
+    let frozen_order = match result.frozen_order {
+        Some(o) => Some(store_result(&state, ArrayData::I64(o), &result.spacing).await?),
+        None => None,
+    };
+    Ok(Json(DistanceResponse {
+        distance,
+        labels,
+        frozen_order,
+        stats: DistanceStats {
+            solve: result.stats,
+            queue_seconds: timing.queue_seconds,
+            total_seconds: started.elapsed().as_secs_f64(),
+        },
+    })
+    .into_response())
+}

@@ -1,0 +1,113 @@
+//! Liveness, readiness and metrics. None of them touches the solver pool.
+
+use axum::extract::State;
+use axum::http::{header, StatusCode};
+use axum::response::IntoResponse;
+use axum::Json;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use crate::http::error::ApiError;
+use crate::http::AppState;
+
+/// Liveness answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Health {
+    /// Always `ok`.
+    pub status: &'static str,
+}
+
+/// Readiness answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Ready {
+    /// `ready`.
+    pub status: &'static str,
+    /// Pool threads.
+    pub pool_threads: usize,
+    /// Admission capacity (waiting + running solves).
+    pub pool_capacity: usize,
+    /// Solves waiting for a thread.
+    pub queued: usize,
+    /// Solves running.
+    pub running: usize,
+    /// Bytes of stored datasets.
+    pub storage_used_bytes: u64,
+    /// Storage quota in bytes.
+    pub storage_quota_bytes: u64,
+}
+
+/// Liveness: the process answers. Instant; never touches the pool or storage.
+#[utoipa::path(
+    get,
+    path = "/healthz",
+    tag = "operations",
+    summary = "Liveness probe",
+    description = "Answers 200 as long as the process serves HTTP. It never waits for the solver pool or storage.",
+    responses(
+        (status = 200, description = "The process is alive.", body = Health, example = json!({"status": "ok"})),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn healthz() -> Json<Health> {
+    Json(Health { status: "ok" })
+}
+
+/// Readiness: the pool exists, storage is usable and the service is not draining.
+#[utoipa::path(
+    get,
+    path = "/readyz",
+    tag = "operations",
+    summary = "Readiness probe",
+    description = "Answers 200 when the solver pool and the dataset storage are usable, and 503 while the service drains after SIGTERM or when storage is unusable.",
+    responses(
+        (status = 200, description = "Ready to take requests.", body = Ready, example = json!({
+            "status": "ready", "pool_threads": 8, "pool_capacity": 16, "queued": 0, "running": 1,
+            "storage_used_bytes": 1048576, "storage_quota_bytes": 8589934592u64
+        })),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+    )
+)]
+pub async fn readyz(State(state): State<AppState>) -> Result<Json<Ready>, ApiError> {
+    if state.is_draining() {
+        return Err(ApiError::busy("the service is shutting down", 5));
+    }
+    let store = state.store.clone();
+    let usable = tokio::task::spawn_blocking(move || store.is_usable())
+        .await
+        .unwrap_or(false);
+    if !usable {
+        return Err(ApiError::busy("the dataset storage is not usable", 5));
+    }
+    let (used, quota) = state.store.usage();
+    Ok(Json(Ready {
+        status: "ready",
+        pool_threads: state.pool.threads(),
+        pool_capacity: state.pool.capacity(),
+        queued: state.pool.waiting(),
+        running: state.pool.running(),
+        storage_used_bytes: used,
+        storage_quota_bytes: quota,
+    }))
+}
+
+/// Prometheus metrics in the text exposition format.
+#[utoipa::path(
+    get,
+    path = "/metrics",
+    tag = "operations",
+    summary = "Prometheus metrics",
+    description = "Request latency by route and status (`geodex_http_request_duration_seconds`), solve time by operation (`geodex_solve_seconds`), pool queue depth (`geodex_pool_queue_depth`), solves in flight (`geodex_pool_in_flight`) and refusals (`geodex_pool_rejected_total`).",
+    responses(
+        (status = 200, description = "Metrics in the Prometheus text format.", body = String, content_type = "text/plain",
+            example = json!("# TYPE geodex_pool_in_flight gauge\ngeodex_pool_in_flight 1\n")),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
+    (
+        StatusCode::OK,
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        state.metrics.render(),
+    )
+}

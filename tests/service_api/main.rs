@@ -1,0 +1,8 @@
+//! Integration tests of the HTTP service: each test starts the real server on
+//! a free port (with its own data directory) and talks HTTP to it.
+
+mod common;
+mod errors;
+mod flow;
+mod load;
+mod openapi;
