@@ -155,7 +155,8 @@ impl Case {
         EikonalOptions::DEFAULT
             .with_method(self.method)
             .with_order(self.order)
-            // Order 1 without factoring is the scheme of scikit-fmm.
+            // Order 1 without factoring is the scheme of scikit-fmm; order 2
+            // with factoring is the accurate default.
             .with_factoring(self.order == Order::Second)
             .with_connectivity(self.connectivity)
     }

@@ -64,7 +64,8 @@ pub struct DistanceArgs {
     /// Order of the finite-difference scheme.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
     pub order: u8,
-    /// Turn off source factoring (fast marching, order 2).
+    /// Turn off source factoring around point sources (fast marching and
+    /// fast sweeping, both orders).
     #[arg(long)]
     pub no_factoring: bool,
     /// Graph neighbourhood of --method dijkstra.
