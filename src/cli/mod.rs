@@ -8,6 +8,10 @@ use clap::{Parser, Subcommand};
 
 use crate::config::ServeArgs;
 
+pub mod bench;
+pub mod distance;
+mod usage;
+
 /// geodex: geodesic distances, minimal paths and segmentations.
 #[derive(Debug, Parser)]
 #[command(
@@ -30,13 +34,19 @@ pub struct Cli {
 pub enum Command {
     /// Run the HTTP service (the default).
     Serve(ServeArgs),
+    /// Compute a distance map from NPY files (batch use).
+    Distance(distance::DistanceArgs),
+    /// Time the solvers on fixed problems (see `geodex bench --help`).
+    Bench(bench::BenchArgs),
 }
 
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = usage::parse_or_exit::<Cli>();
     let result = match cli.command {
         Some(Command::Serve(args)) => crate::app::serve(args),
+        Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
+        Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -1,0 +1,350 @@
+//! `geodex distance`: the distance map of a cost file (or a unit cost on a
+//! shape) for batch users, written as NPY.
+//!
+//! The command builds a [`GridDistanceRequest`], the schema the HTTP service
+//! and the job queue use, and runs it with [`grid_distance::execute`], so the
+//! command line and the service accept and refuse exactly the same inputs.
+//! Points are in array index order (axis 0 first) and in index units.
+//!
+//! ```text
+//! geodex distance --cost W.npy --source 10,20 --source 200,31.5 --out U.npy --labels L.npy
+//! geodex distance --shape 128,128,128 --source 64,64,64 --spacing 1,1,2 --out U.npy
+//! ```
+//!
+//! Errors are one line on stderr naming the flag at fault, e.g.
+//! `geodex: --source 2: point [300.0, 4.0] is outside the grid of shape [256, 256] ...`,
+//! and a non-zero exit status.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use clap::{ArgGroup, Args, ValueEnum};
+
+use crate::io::{self, ArrayData, Limits};
+use crate::numerics::grid::MAX_CELLS;
+use crate::numerics::Control;
+use crate::ops::grid_distance::{
+    self, ConnectivitySpec, CostSpec, GridDistanceRequest, InterpretationSpec, MethodSpec,
+    OutputSpec, SourceSpec, StopSpec,
+};
+use crate::ops::{InputArray, OpError, OpLimits};
+
+/// Flags of `geodex distance`.
+#[derive(Debug, Clone, Args)]
+#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape"])))]
+pub struct DistanceArgs {
+    /// Cost per unit length W (or a speed with --speed): a 2D or 3D array,
+    /// f32 or f64 (NPY, or any format geodex reads). +inf marks a wall.
+    #[arg(long, value_name = "COST.npy")]
+    pub cost: Option<PathBuf>,
+    /// Grid shape for a unit cost, instead of --cost.
+    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    pub shape: Option<Vec<usize>>,
+    /// A point source in index coordinates, axis 0 first; repeat for several
+    /// sources (label i-1 for the i-th).
+    #[arg(
+        long = "source",
+        value_name = "I,J[,K]",
+        required = true,
+        allow_hyphen_values = true
+    )]
+    pub sources: Vec<String>,
+    /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// The solver.
+    #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
+    pub method: MethodArg,
+    /// Order of the finite-difference scheme.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub order: u8,
+    /// Turn off source factoring around point sources (fast marching and
+    /// fast sweeping, both orders).
+    #[arg(long)]
+    pub no_factoring: bool,
+    /// Graph neighbourhood of --method dijkstra.
+    #[arg(long, value_enum, default_value_t = ConnectivityArg::Diagonal)]
+    pub connectivity: ConnectivityArg,
+    /// Read the values of --cost as a speed F = 1/W (0 marks a wall).
+    #[arg(long)]
+    pub speed: bool,
+    /// A mask of the grid's shape whose non-zero cells are obstacles.
+    #[arg(long, value_name = "MASK.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Stop once the front passes this distance (cells beyond stay +inf).
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub max_distance: Option<f64>,
+    /// Stop once these points (index coordinates) are reached; repeatable.
+    #[arg(long = "target", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub targets: Vec<String>,
+    /// Where to write the distance U (f64 NPY, +inf where not reached).
+    #[arg(long, value_name = "U.npy")]
+    pub out: PathBuf,
+    /// Where to write the Voronoi labels (i32 NPY, -1 where not reached).
+    #[arg(long, value_name = "L.npy")]
+    pub labels: Option<PathBuf>,
+}
+
+/// `--method`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Fast marching.
+    FastMarching,
+    /// Fast sweeping.
+    FastSweeping,
+    /// Dijkstra on the grid graph.
+    Dijkstra,
+}
+
+/// `--connectivity`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ConnectivityArg {
+    /// 4 neighbours in 2D, 6 in 3D.
+    Axial,
+    /// 8 neighbours in 2D, 18 in 3D.
+    Diagonal,
+    /// 16 neighbours in 2D, 26 in 3D.
+    Extended,
+}
+
+/// Why `geodex distance` failed: always names the flag at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum DistanceError {
+    /// A flag's value is refused.
+    #[error("{flag}: {reason}")]
+    Flag {
+        /// The flag, with its occurrence for repeatable ones (`--source 2`).
+        flag: String,
+        /// Why.
+        reason: String,
+    },
+    /// The user cancelled.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+fn flag(flag: impl Into<String>, reason: impl Into<String>) -> DistanceError {
+    DistanceError::Flag {
+        flag: flag.into(),
+        reason: reason.into(),
+    }
+}
+
+/// Runs `geodex distance`.
+pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
+    let sources = parse_points("--source", &args.sources)?;
+    let targets = parse_points("--target", &args.targets)?;
+    let cost_flag = if args.cost.is_some() {
+        "--cost"
+    } else {
+        "--shape"
+    };
+
+    let mut inputs: HashMap<String, InputArray> = HashMap::new();
+    if let Some(path) = &args.cost {
+        let decoded = read_array("--cost", path)?;
+        inputs.insert(
+            "cost".into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: decoded.spacing,
+            },
+        );
+    }
+    if let Some(path) = &args.obstacles {
+        let decoded = read_array("--obstacles", path)?;
+        inputs.insert(
+            "obstacles".into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: None,
+            },
+        );
+    }
+
+    let request = GridDistanceRequest {
+        cost: CostSpec {
+            dataset: args.cost.as_ref().map(|_| "cost".to_string()),
+            constant: args.shape.as_ref().map(|_| 1.0),
+            shape: args.shape.clone(),
+            interpretation: if args.speed {
+                InterpretationSpec::Speed
+            } else {
+                InterpretationSpec::Cost
+            },
+        },
+        spacing: args.spacing.clone(),
+        obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
+        sources: sources
+            .into_iter()
+            .map(|p| SourceSpec {
+                point: Some(p),
+                cells: None,
+                values: None,
+            })
+            .collect(),
+        method: match args.method {
+            MethodArg::FastMarching => MethodSpec::FastMarching,
+            MethodArg::FastSweeping => MethodSpec::FastSweeping,
+            MethodArg::Dijkstra => MethodSpec::Dijkstra,
+        },
+        order: args.order,
+        factoring: !args.no_factoring,
+        connectivity: match args.connectivity {
+            ConnectivityArg::Axial => ConnectivitySpec::Axial,
+            ConnectivityArg::Diagonal => ConnectivitySpec::Diagonal,
+            ConnectivityArg::Extended => ConnectivitySpec::Extended,
+        },
+        stop: StopSpec {
+            targets,
+            max_distance: args.max_distance,
+            max_frozen: None,
+        },
+        outputs: OutputSpec {
+            labels: args.labels.is_some(),
+            frozen_order: false,
+        },
+    };
+    let limits = OpLimits {
+        max_cells: MAX_CELLS,
+        max_sources: usize::MAX,
+    };
+    let result = grid_distance::execute(&request, &inputs, &limits, &Control::new())
+        .map_err(|e| op_error(e, cost_flag))?;
+
+    write_array("--out", &args.out, ArrayData::F64(result.distance))?;
+    if let (Some(path), Some(labels)) = (&args.labels, result.labels) {
+        write_array("--labels", path, ArrayData::I32(labels))?;
+    }
+    let s = &result.stats;
+    println!(
+        "geodex: wrote {} ({} of {} cells reached, stop: {}, solve {:.3} s)",
+        args.out.display(),
+        s.frozen,
+        s.cells,
+        s.stop,
+        s.solve_seconds
+    );
+    Ok(())
+}
+
+/// Parses repeated `I,J[,K]` values; errors name the occurrence (1-based).
+fn parse_points(name: &str, values: &[String]) -> Result<Vec<Vec<f64>>, DistanceError> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let bad = || {
+                flag(
+                    format!("{name} {}", i + 1),
+                    format!(
+                        "'{v}' is not a point: expected 2 or 3 comma-separated finite numbers \
+                         (index coordinates, axis 0 first)"
+                    ),
+                )
+            };
+            let p = v
+                .split(',')
+                .map(|x| x.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+                .collect::<Option<Vec<f64>>>()
+                .ok_or_else(bad)?;
+            if !(2..=3).contains(&p.len()) {
+                return Err(bad());
+            }
+            Ok(p)
+        })
+        .collect()
+}
+
+fn read_array(name: &str, path: &Path) -> Result<io::Decoded, DistanceError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| flag(name, format!("cannot read '{}': {e}", path.display())))?;
+    let limits = Limits {
+        max_cells: MAX_CELLS,
+        max_bytes: usize::MAX,
+    };
+    io::decode(&bytes, None, &limits).map_err(|e| flag(name, format!("'{}': {e}", path.display())))
+}
+
+fn write_array(name: &str, path: &Path, array: ArrayData) -> Result<(), DistanceError> {
+    let bytes = io::encode_npy(&array).map_err(|e| flag(name, e.to_string()))?;
+    std::fs::write(path, bytes)
+        .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
+}
+
+/// Maps an [`OpError`] of the request back to the flag that produced the field.
+fn op_error(e: OpError, cost_flag: &str) -> DistanceError {
+    let reason = match &e {
+        OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => reason.clone(),
+        OpError::UnknownDataset { id, .. } => format!("dataset '{id}' not found"),
+        OpError::Cancelled => return DistanceError::Cancelled,
+    };
+    let field = e.field().unwrap_or_default();
+    flag(flag_of(field, cost_flag), reason)
+}
+
+/// The command-line flag behind a JSON field path of [`GridDistanceRequest`].
+fn flag_of(field: &str, cost_flag: &str) -> String {
+    let indexed = |prefix: &str| -> Option<usize> {
+        let rest = field.strip_prefix(prefix)?;
+        rest[..rest.find(']')?].parse().ok()
+    };
+    if let Some(i) = indexed("sources[") {
+        return format!("--source {}", i + 1);
+    }
+    if let Some(i) = indexed("stop.targets[") {
+        return format!("--target {}", i + 1);
+    }
+    if let Some(i) = indexed("spacing[") {
+        return format!("--spacing value {}", i + 1);
+    }
+    if let Some(i) = indexed("cost.shape[").filter(|_| cost_flag == "--shape") {
+        return format!("--shape value {}", i + 1);
+    }
+    let root = field.split(['.', '[']).next().unwrap_or(field);
+    match (root, field) {
+        ("cost", _) => cost_flag.into(),
+        ("spacing", _) => "--spacing".into(),
+        ("obstacles", _) => "--obstacles".into(),
+        (_, "stop.max_distance") => "--max-distance".into(),
+        ("order", _) => "--order".into(),
+        ("method", _) => "--method".into(),
+        ("connectivity", _) => "--connectivity".into(),
+        ("sources", _) => "--source".into(),
+        _ => field.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn field_paths_map_to_flags() {
+        assert_eq!(flag_of("sources[1].point[0]", "--cost"), "--source 2");
+        assert_eq!(flag_of("sources[0]", "--cost"), "--source 1");
+        assert_eq!(flag_of("stop.targets[2]", "--cost"), "--target 3");
+        assert_eq!(flag_of("cost.dataset", "--cost"), "--cost");
+        assert_eq!(flag_of("cost.shape[1]", "--shape"), "--shape value 2");
+        assert_eq!(flag_of("spacing[1]", "--cost"), "--spacing value 2");
+        assert_eq!(flag_of("spacing", "--cost"), "--spacing");
+        assert_eq!(flag_of("stop.max_distance", "--cost"), "--max-distance");
+        assert_eq!(flag_of("obstacles", "--cost"), "--obstacles");
+    }
+
+    #[test]
+    fn points_parse_or_name_their_occurrence() {
+        let ok = parse_points("--source", &["1,2.5".into(), " 3, 4 ,5".into()]).unwrap();
+        assert_eq!(ok, vec![vec![1.0, 2.5], vec![3.0, 4.0, 5.0]]);
+        for bad in ["1", "1,2,3,4", "1,x", "1,nan", ""] {
+            let e = parse_points("--source", &["0,0".into(), bad.into()]).unwrap_err();
+            assert!(e.to_string().starts_with("--source 2: "), "{e}");
+        }
+    }
+}

@@ -1,0 +1,394 @@
+//! `geodex distance` end to end: the built binary, NPY files in a temporary
+//! directory, outputs compared with the library's `solve` on the same problem,
+//! and one clear stderr line for each kind of bad input.
+
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use geodex::numerics::eikonal::{Method, Order, StopRules};
+use geodex::numerics::metric::{CostValues, Interpretation};
+use geodex::numerics::{
+    solve, Control, EikonalOptions, EikonalProblem, Grid, IsotropicCost, Source,
+};
+use ndarray::{ArrayD, IxDyn};
+use ndarray_npy::{read_npy, write_npy};
+use tempfile::TempDir;
+
+fn geodex(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .args(args)
+        .output()
+        .expect("the geodex binary runs")
+}
+
+fn path(dir: &TempDir, name: &str) -> PathBuf {
+    dir.path().join(name)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A smooth positive cost `1 + 0.5 sin(0.3 i) cos(0.2 j) (+ 0.1 k)`.
+fn cost_field(shape: &[usize]) -> ArrayD<f64> {
+    ArrayD::from_shape_fn(IxDyn(shape), |ix| {
+        let i = ix[0] as f64;
+        let j = ix[1] as f64;
+        let k = if shape.len() == 3 { ix[2] as f64 } else { 0.0 };
+        1.0 + 0.5 * (0.3 * i).sin() * (0.2 * j).cos() + 0.01 * k
+    })
+}
+
+/// Runs `geodex distance`, checks that it succeeded, and returns `(U, labels)`.
+fn distance_ok(args: &[&str], out: &Path, labels: &Path) -> (ArrayD<f64>, ArrayD<i32>) {
+    let o = geodex(args);
+    assert!(
+        o.status.success(),
+        "geodex failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    (read_npy(out).unwrap(), read_npy(labels).unwrap())
+}
+
+fn assert_same(u: &ArrayD<f64>, expected: &ArrayD<f64>) {
+    assert_eq!(u.shape(), expected.shape());
+    for (a, b) in u.iter().zip(expected.iter()) {
+        assert!(a == b || (a - b).abs() <= 1e-12, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn f32_cost_2d_with_two_sources_matches_the_library() {
+    let dir = TempDir::new().unwrap();
+    let (cost, out, labels) = (
+        path(&dir, "w.npy"),
+        path(&dir, "u.npy"),
+        path(&dir, "l.npy"),
+    );
+    let w = cost_field(&[40, 50]).mapv(|v| v as f32);
+    write_npy(&cost, &w).unwrap();
+    let (u, l) = distance_ok(
+        &[
+            "distance",
+            "--cost",
+            s(&cost),
+            "--source",
+            "10,12",
+            "--source",
+            "30.5,40",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    let grid = Grid::unit(&[40, 50]).unwrap();
+    let values = w.as_slice().unwrap();
+    let problem = EikonalProblem {
+        cost: IsotropicCost::new(
+            &grid,
+            CostValues::F32(Cow::Borrowed(values)),
+            Interpretation::Cost,
+            None,
+        )
+        .unwrap(),
+        grid,
+        sources: vec![
+            Source::Point(vec![10.0, 12.0]),
+            Source::Point(vec![30.5, 40.0]),
+        ],
+    };
+    let expected = solve(&problem, &EikonalOptions::DEFAULT, &Control::new()).unwrap();
+    assert_same(&u, &expected.distance);
+    assert_eq!(l, expected.labels);
+    assert_eq!(u[[10, 12]], 0.0);
+    assert_eq!(l[[0, 0]], 0);
+    assert_eq!(l[[39, 49]], 1);
+}
+
+#[test]
+fn f64_cost_3d_with_spacing_and_fast_sweeping_matches_the_library() {
+    let dir = TempDir::new().unwrap();
+    let (cost, out, labels) = (
+        path(&dir, "w.npy"),
+        path(&dir, "u.npy"),
+        path(&dir, "l.npy"),
+    );
+    let w = cost_field(&[12, 14, 10]);
+    write_npy(&cost, &w).unwrap();
+    let (u, l) = distance_ok(
+        &[
+            "distance",
+            "--cost",
+            s(&cost),
+            "--source",
+            "3,4,5",
+            "--spacing",
+            "1,0.5,2",
+            "--method",
+            "fast-sweeping",
+            "--order",
+            "1",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    let grid = Grid::new(&[12, 14, 10], &[1.0, 0.5, 2.0]).unwrap();
+    let problem = EikonalProblem {
+        cost: IsotropicCost::new(
+            &grid,
+            CostValues::F64(Cow::Borrowed(w.as_slice().unwrap())),
+            Interpretation::Cost,
+            None,
+        )
+        .unwrap(),
+        grid,
+        sources: vec![Source::Point(vec![3.0, 4.0, 5.0])],
+    };
+    let options = EikonalOptions::DEFAULT
+        .with_method(Method::FastSweeping)
+        .with_order(Order::First);
+    let expected = solve(&problem, &options, &Control::new()).unwrap();
+    assert_same(&u, &expected.distance);
+    assert!(l.iter().all(|&x| x == 0));
+}
+
+#[test]
+fn unit_shape_3d_is_close_to_the_euclidean_distance() {
+    // Exact solution of |∇U| = 1 with a point source: U = |x - p|.
+    let dir = TempDir::new().unwrap();
+    let (out, labels) = (path(&dir, "u.npy"), path(&dir, "l.npy"));
+    let (u, _) = distance_ok(
+        &[
+            "distance",
+            "--shape",
+            "21,22,23",
+            "--source",
+            "10,11,12",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    assert_eq!(u.shape(), &[21, 22, 23]);
+    let (mut max, mut sum) = (0.0f64, 0.0);
+    for (ix, &v) in u.indexed_iter() {
+        let r = ((ix[0] as f64 - 10.0).powi(2)
+            + (ix[1] as f64 - 11.0).powi(2)
+            + (ix[2] as f64 - 12.0).powi(2))
+        .sqrt();
+        max = max.max((v - r).abs());
+        sum += (v - r).abs();
+    }
+    let mean = sum / u.len() as f64;
+    assert!(max < 0.15 && max > 0.0, "max {max}");
+    assert!(mean < 0.05, "mean {mean}");
+}
+
+#[test]
+fn speed_obstacles_and_stop_rules_match_the_library() {
+    let dir = TempDir::new().unwrap();
+    let (speed, mask, out, labels) = (
+        path(&dir, "f.npy"),
+        path(&dir, "m.npy"),
+        path(&dir, "u.npy"),
+        path(&dir, "l.npy"),
+    );
+    let f = cost_field(&[30, 30]);
+    let m = ArrayD::from_shape_fn(IxDyn(&[30, 30]), |ix| ix[1] == 15 && ix[0] < 25);
+    write_npy(&speed, &f).unwrap();
+    write_npy(&mask, &m).unwrap();
+    let (u, l) = distance_ok(
+        &[
+            "distance",
+            "--cost",
+            s(&speed),
+            "--speed",
+            "--obstacles",
+            s(&mask),
+            "--source",
+            "5,5",
+            "--max-distance",
+            "20",
+            "--method",
+            "dijkstra",
+            "--connectivity",
+            "extended",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    let grid = Grid::unit(&[30, 30]).unwrap();
+    let problem = EikonalProblem {
+        cost: IsotropicCost::new(
+            &grid,
+            CostValues::F64(Cow::Borrowed(f.as_slice().unwrap())),
+            Interpretation::Speed,
+            Some(Cow::Owned(m.iter().copied().collect())),
+        )
+        .unwrap(),
+        grid,
+        sources: vec![Source::Point(vec![5.0, 5.0])],
+    };
+    let options = EikonalOptions::DEFAULT
+        .with_method(Method::Dijkstra)
+        .with_connectivity(geodex::numerics::Connectivity::Extended)
+        .with_stop(StopRules {
+            max_distance: Some(20.0),
+            ..Default::default()
+        });
+    let expected = solve(&problem, &options, &Control::new()).unwrap();
+    assert_same(&u, &expected.distance);
+    assert_eq!(l, expected.labels);
+    assert_eq!(u[[5, 15]], f64::INFINITY);
+    assert!(u.iter().any(|v| v.is_infinite()) && u.iter().any(|v| *v > 10.0 && v.is_finite()));
+}
+
+/// Runs a command that must fail and returns its single stderr line.
+fn one_error_line(args: &[&str]) -> String {
+    let o = geodex(args);
+    assert!(!o.status.success(), "{args:?} should fail");
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "{args:?}: stderr is not one line: {err:?}");
+    assert!(lines[0].starts_with("geodex: "), "{err}");
+    lines[0].to_string()
+}
+
+#[test]
+fn bad_inputs_exit_non_zero_with_one_line_naming_the_problem() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    let o = s(&out);
+    let write = |name: &str, a: ArrayD<f64>| {
+        let p = path(&dir, name);
+        write_npy(&p, &a).unwrap();
+        p
+    };
+    let good = write("good.npy", ArrayD::from_elem(IxDyn(&[256, 256]), 1.0));
+    let mut nan = ArrayD::from_elem(IxDyn(&[8, 8]), 1.0);
+    nan[[2, 3]] = f64::NAN;
+    let nan = write("nan.npy", nan);
+    let mut neg = ArrayD::from_elem(IxDyn(&[8, 8]), 1.0);
+    neg[[4, 1]] = -2.0;
+    let neg = write("neg.npy", neg);
+    let one_d = write("1d.npy", ArrayD::from_elem(IxDyn(&[8]), 1.0));
+    let four_d = write("4d.npy", ArrayD::from_elem(IxDyn(&[2, 2, 2, 2]), 1.0));
+    let mut walls = ArrayD::from_elem(IxDyn(&[8, 8]), 1.0);
+    walls[[3, 3]] = f64::INFINITY;
+    let walls = write("walls.npy", walls);
+    let missing = path(&dir, "missing.npy");
+
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        (
+            vec!["--cost", s(&missing), "--source", "1,1"],
+            &["--cost: cannot read", "missing.npy"],
+        ),
+        (
+            vec!["--cost", s(&nan), "--source", "1,1"],
+            &["--cost: ", "[2, 3]", "NaN"],
+        ),
+        (
+            vec!["--cost", s(&neg), "--source", "1,1"],
+            &["--cost: ", "[4, 1]", "-2"],
+        ),
+        (
+            vec!["--cost", s(&good), "--source", "4,4", "--source", "300,4"],
+            &["--source 2: point [300.0, 4.0] is outside the grid of shape [256, 256]"],
+        ),
+        (
+            vec!["--cost", s(&walls), "--source", "3,3"],
+            &["--source 1: ", "obstacle"],
+        ),
+        (
+            vec!["--cost", s(&one_d), "--source", "1,1"],
+            &["--cost: ", "2D or 3D"],
+        ),
+        (vec!["--cost", s(&four_d), "--source", "1,1"], &["--cost: "]),
+        (
+            vec!["--shape", "8,8", "--source", "1,x"],
+            &["--source 1: '1,x' is not a point"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,2,3,4"],
+            &["--source 1: "],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1,1"],
+            &["--source 1: ", "3 coordinates"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--spacing", "1,0"],
+            &["--spacing value 2: 0 must be"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--spacing", "1"],
+            &["--spacing: "],
+        ),
+        (
+            vec!["--shape", "8", "--source", "1,1"],
+            &["--shape: ", "2D or 3D"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--target", "9,9"],
+            &["--target 1: ", "outside"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--max-distance", "-1"],
+            &["--max-distance: "],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--order", "3"],
+            &["--order"],
+        ),
+        (
+            vec!["--shape", "8,8", "--source", "1,1", "--method", "magic"],
+            &["--method", "magic"],
+        ),
+        (vec!["--shape", "8,x", "--source", "1,1"], &["--shape"]),
+        (
+            vec!["--cost", s(&good), "--shape", "8,8", "--source", "1,1"],
+            &["--cost", "--shape"],
+        ),
+        (vec!["--shape", "8,8"], &["--source"]),
+    ];
+    for (extra, needles) in cases {
+        let mut args = vec!["distance"];
+        args.extend(extra.iter().copied());
+        if !extra.contains(&"--out") {
+            args.extend(["--out", o]);
+        }
+        let line = one_error_line(&args);
+        for n in needles {
+            assert!(line.contains(n), "{args:?}: {line:?} lacks {n:?}");
+        }
+        eprintln!("{line}");
+    }
+    // Missing --out, and an output that cannot be written.
+    let line = one_error_line(&["distance", "--shape", "8,8", "--source", "1,1"]);
+    assert!(line.contains("--out"), "{line}");
+    let line = one_error_line(&[
+        "distance",
+        "--shape",
+        "8,8",
+        "--source",
+        "1,1",
+        "--out",
+        "/nonexistent/dir/u.npy",
+    ]);
+    assert!(line.starts_with("geodex: --out: cannot write"), "{line}");
+}
