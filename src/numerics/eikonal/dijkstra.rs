@@ -50,7 +50,17 @@
 //!
 //! (the 16-neighbour bisector value is `1/cos(atan(1/2)/2) − 1 = 2.75 %`; the
 //! tests assert the measured error stays below these figures and above most of
-//! them). Use fast marching for a consistent `O(h)` / `O(h^2)` solution;
+//! them). In 3D, for a direction `(a, b, c)` with `a ≥ b ≥ c ≥ 0`, the graph
+//! length is `(a−b) + (b−c)√2 + c√3` with 26 neighbours, `(a−b−c) + (b+c)√2`
+//! (or `(a+b+c)/√2` when `b + c > a`) with 18, and `a + b + c` with 6;
+//! maximising over directions gives the worst-case elongations:
+//!
+//! | 3D neighbours | worst-case elongation |
+//! |---------------|-----------------------|
+//! | 6             | 73.2 % (`√3 − 1`)     |
+//! | 18            | 22.5 % (`√(3/2) − 1`) |
+//! | 26            | 12.8 %                |
+//! Use fast marching for a consistent `O(h)` / `O(h^2)` solution;
 //! Dijkstra is a baseline and the only solver whose result is exactly a path
 //! length on the graph.
 //!
