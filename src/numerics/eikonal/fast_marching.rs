@@ -1,9 +1,9 @@
 //! Fast marching (Sethian 1996; Tsitsiklis 1995) for `|∇U| = W` on 2D/3D grids.
 //!
 //! Every cell is `Far`, `Trial` (in the narrow band, an [`IndexedHeap`]) or
-//! `Frozen`. The seed cells of the [`InitialFront`] enter the band with their
-//! prescribed values, which are Dirichlet data: they are never recomputed.
-//! The band cell of smallest value is frozen, and each of its non-frozen,
+//! `Frozen`. The seed cells of the [`InitialFront`] wait in a queue sorted by
+//! their prescribed values, which are Dirichlet data: they are never
+//! recomputed. The smallest of the band and of the seed queue is frozen, and each of its non-frozen,
 //! non-wall axis neighbours is recomputed from its frozen neighbours with the
 //! upwind update of [`super::update`] (the latest recomputation replaces the
 //! band value: for the second-order scheme, which uses more information as
@@ -33,26 +33,38 @@
 //! 65536 frozen cells and at the end.
 //!
 //! Memory beyond the input cost and the output `U` (`f64`) and labels
-//! (`i32`): 1 byte of state and 4 bytes of heap position per cell, plus 16
-//! bytes per band cell (at most 21 bytes per cell); 1 byte per cell more when
-//! targets are given and 8 when the freezing order is recorded (an output).
+//! (`i32`): 4 bytes per cell for the state, which shares its word with the
+//! heap position, plus 16 bytes per band or seed cell (at most 20 bytes per
+//! cell); 1 byte per cell more when targets are given and 8 when the freezing
+//! order is recorded (an output).
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{update, Factor, Stencil};
+use super::update::{first_order, update, Factor, Stencil};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
 };
 use crate::numerics::control::Control;
-use crate::numerics::heap::IndexedHeap;
+use crate::numerics::heap::{IndexedHeap, ABSENT, FIRST_TAG};
+use crate::numerics::metric::IsotropicCost;
 
-const FAR: u8 = 0;
-const TRIAL: u8 = 1;
-const FROZEN: u8 = 2;
-const WALL: u8 = 3;
-/// In the band with a prescribed (Dirichlet) value: never recomputed.
-const SEED: u8 = 4;
+// Cell states, kept in the heap's position array (a slot `< FIRST_TAG`
+// means Trial, i.e. in the band).
+/// Not reached yet.
+const FAR: u32 = ABSENT;
+/// Final value.
+const FROZEN: u32 = FIRST_TAG;
+/// Never entered.
+const WALL: u32 = FIRST_TAG + 1;
+/// Waiting in the seed queue with a prescribed (Dirichlet) value: never recomputed.
+const SEED: u32 = FIRST_TAG + 2;
+
+/// True for the states whose value an update may (re)compute: Far and Trial.
+#[inline]
+fn open(state: u32) -> bool {
+    state < FIRST_TAG || state == FAR
+}
 
 const CANCEL_EVERY: usize = 4096;
 const PROGRESS_EVERY: usize = 65536;
@@ -76,117 +88,71 @@ pub(super) fn solve(
         None
     };
 
-    let mut u = vec![f64::INFINITY; n];
-    let mut labels = vec![-1i32; n];
-    let mut state = vec![FAR; n];
-    if !cost.is_uniform() {
-        for (i, s) in state.iter_mut().enumerate() {
-            if cost.is_wall(i) {
-                *s = WALL;
-            }
-        }
-    }
-
-    let mut is_target: Vec<bool> = Vec::new();
-    let mut targets_left = 0usize;
-    if !options.stop.targets.is_empty() {
-        is_target = vec![false; n];
-        for t in target_cells(grid, &options.stop.targets)? {
-            if !is_target[t] {
-                is_target[t] = true;
-                targets_left += 1;
-            }
-        }
-    }
-
-    let mut heap = IndexedHeap::new(n);
-    for c in &front.cells {
-        u[c.index] = c.value;
-        labels[c.index] = c.label;
-        state[c.index] = SEED;
-        heap.push(c.index as u32, c.value);
-    }
-    let mut order = options.record_order.then(|| vec![-1i64; n]);
-
-    let mut frozen = 0usize;
-    let stop = loop {
-        if frozen.is_multiple_of(CANCEL_EVERY) && control.is_cancelled() {
-            return Err(EikonalError::Cancelled);
-        }
-        if frozen.is_multiple_of(PROGRESS_EVERY) && frozen > 0 {
-            control.report(frozen as f64 / n as f64);
-        }
-        let Some((id, key)) = heap.peek() else {
-            break StopReason::Completed;
-        };
-        if options.stop.max_distance.is_some_and(|d| key > d) {
-            break StopReason::MaxDistance;
-        }
-        if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
-            break StopReason::MaxFrozen;
-        }
-        heap.pop();
-        let i = id as usize;
-        state[i] = FROZEN;
-        if let Some(o) = order.as_mut() {
-            o[i] = frozen as i64;
-        }
-        frozen += 1;
-        if targets_left > 0 && is_target[i] {
-            targets_left -= 1;
-            if targets_left == 0 {
-                break StopReason::TargetsReached;
-            }
-        }
-
-        let idx = grid.unravel(i);
-        for &k in st.axes() {
-            let s = st.strides[k];
-            for up in [false, true] {
-                let (j, jk) = if up {
-                    if idx[k] + 1 >= st.shape[k] {
-                        continue;
-                    }
-                    (i + s, idx[k] + 1)
-                } else {
-                    if idx[k] == 0 {
-                        continue;
-                    }
-                    (i - s, idx[k] - 1)
-                };
-                let sj = state[j];
-                if sj != FAR && sj != TRIAL {
-                    continue;
-                }
-                let mut jdx = idx;
-                jdx[k] = jk;
-                let w = cost.at(j);
-                let known = |x: usize| state[x] == FROZEN;
-                if let Some((v, l)) = update(
-                    &st,
-                    j,
-                    jdx,
-                    w,
-                    &u,
-                    &labels,
-                    known,
-                    second,
-                    factor.as_ref(),
-                    multi,
-                    cost,
-                ) {
-                    u[j] = v;
-                    labels[j] = l;
-                    state[j] = TRIAL;
-                    heap.set_key(j as u32, v);
-                }
-            }
-        }
+    let mut m = March {
+        st: &st,
+        u: vec![f64::INFINITY; n],
+        labels: vec![-1i32; n],
+        heap: IndexedHeap::new(n),
+        seeds: Vec::with_capacity(front.cells.len()),
+        is_target: Vec::new(),
+        targets_left: 0,
+        order: options.record_order.then(|| vec![-1i64; n]),
     };
+    if !cost.is_uniform() {
+        for i in 0..n {
+            if cost.is_wall(i) {
+                m.heap.tag(i as u32, WALL);
+            }
+        }
+    }
+    if !options.stop.targets.is_empty() {
+        m.is_target = vec![false; n];
+        for t in target_cells(grid, &options.stop.targets)? {
+            if !m.is_target[t] {
+                m.is_target[t] = true;
+                m.targets_left += 1;
+            }
+        }
+    }
+    // The seeds are frozen in increasing value, interleaved with the band:
+    // a sorted queue beside the heap (ties go to the seed).
+    for c in &front.cells {
+        m.u[c.index] = c.value;
+        m.labels[c.index] = c.label;
+        m.heap.tag(c.index as u32, SEED);
+        m.seeds.push((c.value, c.index as u32));
+    }
+    m.seeds
+        .sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+
+    // The first-order unfactored scheme with one source (labels are all 0)
+    // has a kernel of its own, monomorphised on the kind of cost.
+    let (stop, frozen) = if !second && factor.is_none() && !multi {
+        match cost.uniform_value() {
+            Some(w) => m.run(&FirstOrder { st: &st, cost: w }, options, control)?,
+            None => m.run(&FirstOrder { st: &st, cost }, options, control)?,
+        }
+    } else {
+        let kernel = General {
+            st: &st,
+            cost,
+            second,
+            factor: factor.as_ref(),
+            multi,
+        };
+        m.run(&kernel, options, control)?
+    };
+    let March {
+        mut u,
+        mut labels,
+        heap,
+        order,
+        ..
+    } = m;
 
     if stop != StopReason::Completed {
-        for ((s, v), l) in state.iter().zip(u.iter_mut()).zip(labels.iter_mut()) {
-            if *s != FROZEN {
+        for (i, (v, l)) in u.iter_mut().zip(labels.iter_mut()).enumerate() {
+            if heap.state(i as u32) != FROZEN {
                 *v = f64::INFINITY;
                 *l = -1;
             }
@@ -194,4 +160,214 @@ pub(super) fn solve(
     }
     control.report(1.0);
     Ok(finish(grid, u, labels, order, frozen, stop, None))
+}
+
+/// The working state of a solve.
+struct March<'a> {
+    st: &'a Stencil,
+    u: Vec<f64>,
+    labels: Vec<i32>,
+    /// The band; its position array also holds every cell's state.
+    heap: IndexedHeap,
+    /// Seed cells `(value, index)` sorted by value; the first `next_seed` are frozen.
+    seeds: Vec<(f64, u32)>,
+    is_target: Vec<bool>,
+    targets_left: usize,
+    order: Option<Vec<i64>>,
+}
+
+impl March<'_> {
+    /// Freezes cells until the band is empty or a stop rule fires; returns
+    /// the reason and the number of frozen cells.
+    fn run<K: Kernel>(
+        &mut self,
+        kernel: &K,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let n = self.u.len();
+        let st = self.st;
+        let mut next_seed = 0usize;
+        let mut frozen = 0usize;
+        let stop = loop {
+            if frozen.is_multiple_of(CANCEL_EVERY) && control.is_cancelled() {
+                return Err(EikonalError::Cancelled);
+            }
+            if frozen.is_multiple_of(PROGRESS_EVERY) && frozen > 0 {
+                control.report(frozen as f64 / n as f64);
+            }
+            let seed = self.seeds.get(next_seed).copied();
+            let (id, key, from_seed) = match (self.heap.peek(), seed) {
+                (Some((hid, hk)), Some((sk, sid))) => {
+                    if sk <= hk {
+                        (sid, sk, true)
+                    } else {
+                        (hid, hk, false)
+                    }
+                }
+                (Some((hid, hk)), None) => (hid, hk, false),
+                (None, Some((sk, sid))) => (sid, sk, true),
+                (None, None) => break StopReason::Completed,
+            };
+            if options.stop.max_distance.is_some_and(|d| key > d) {
+                break StopReason::MaxDistance;
+            }
+            if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
+                break StopReason::MaxFrozen;
+            }
+            if from_seed {
+                next_seed += 1;
+            } else {
+                self.heap.pop();
+            }
+            self.heap.tag(id, FROZEN);
+            let i = id as usize;
+            if let Some(o) = self.order.as_mut() {
+                o[i] = frozen as i64;
+            }
+            frozen += 1;
+            if self.targets_left > 0 && self.is_target[i] {
+                self.targets_left -= 1;
+                if self.targets_left == 0 {
+                    break StopReason::TargetsReached;
+                }
+            }
+
+            let idx = st.unravel(i);
+            for &k in st.axes() {
+                let s = st.strides[k];
+                if idx[k] > 0 {
+                    self.visit(kernel, i - s, idx, k, idx[k] - 1);
+                }
+                if idx[k] + 1 < st.shape[k] {
+                    self.visit(kernel, i + s, idx, k, idx[k] + 1);
+                }
+            }
+        };
+        if !K::LABELS {
+            // One source: every reached cell has label 0.
+            for (i, l) in self.labels.iter_mut().enumerate() {
+                *l = if self.heap.state(i as u32) == FROZEN {
+                    0
+                } else {
+                    -1
+                };
+            }
+        }
+        Ok((stop, frozen))
+    }
+
+    /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
+    #[inline]
+    fn visit<K: Kernel>(&mut self, kernel: &K, j: usize, idx: [usize; 3], k: usize, jk: usize) {
+        if !open(self.heap.state(j as u32)) {
+            return;
+        }
+        let mut jdx = idx;
+        jdx[k] = jk;
+        if let Some((v, l)) = kernel.value(j, jdx, &self.u, &self.labels, &self.heap) {
+            self.u[j] = v;
+            if K::LABELS {
+                self.labels[j] = l;
+            }
+            self.heap.set_key(j as u32, v);
+        }
+    }
+}
+
+/// How a band value is computed from the frozen neighbours.
+trait Kernel {
+    /// Whether the kernel gives labels; if not (one source) every reached
+    /// cell gets label 0 at the end.
+    const LABELS: bool;
+
+    /// The new value and label of cell `j` (padded index `jdx`), or `None`.
+    fn value(
+        &self,
+        j: usize,
+        jdx: [usize; 3],
+        u: &[f64],
+        labels: &[i32],
+        heap: &IndexedHeap,
+    ) -> Option<(f64, i32)>;
+}
+
+/// The general update of [`super::update`]: either order, factoring,
+/// several sources.
+struct General<'a> {
+    st: &'a Stencil,
+    cost: &'a IsotropicCost<'a>,
+    second: bool,
+    factor: Option<&'a Factor>,
+    multi: bool,
+}
+
+impl Kernel for General<'_> {
+    const LABELS: bool = true;
+
+    #[inline]
+    fn value(
+        &self,
+        j: usize,
+        jdx: [usize; 3],
+        u: &[f64],
+        labels: &[i32],
+        heap: &IndexedHeap,
+    ) -> Option<(f64, i32)> {
+        update(
+            self.st,
+            j,
+            jdx,
+            self.cost.at(j),
+            u,
+            labels,
+            |x| heap.state(x as u32) == FROZEN,
+            self.second,
+            self.factor,
+            self.multi,
+            self.cost,
+        )
+    }
+}
+
+/// A cost lookup, monomorphised: a constant or the general field.
+trait CostAt {
+    fn at(&self, i: usize) -> f64;
+}
+
+impl CostAt for f64 {
+    #[inline]
+    fn at(&self, _: usize) -> f64 {
+        *self
+    }
+}
+
+impl CostAt for &IsotropicCost<'_> {
+    #[inline]
+    fn at(&self, i: usize) -> f64 {
+        IsotropicCost::at(self, i)
+    }
+}
+
+/// The first-order unfactored update for one source ([`first_order`]).
+struct FirstOrder<'a, C> {
+    st: &'a Stencil,
+    cost: C,
+}
+
+impl<C: CostAt> Kernel for FirstOrder<'_, C> {
+    const LABELS: bool = false;
+
+    #[inline]
+    fn value(
+        &self,
+        j: usize,
+        jdx: [usize; 3],
+        u: &[f64],
+        _labels: &[i32],
+        heap: &IndexedHeap,
+    ) -> Option<(f64, i32)> {
+        let known = |x: usize| heap.state(x as u32) == FROZEN;
+        first_order(self.st, j, jdx, self.cost.at(j), u, known).map(|v| (v, 0))
+    }
 }

@@ -74,6 +74,8 @@ pub(super) struct Stencil {
     /// Axes of length > 1.
     axes: [usize; 3],
     naxes: usize,
+    /// Division by `strides[0]` and `strides[1]` (for [`Stencil::unravel`]).
+    div: [FastDiv; 2],
 }
 
 impl Stencil {
@@ -97,6 +99,10 @@ impl Stencil {
             inv_h2_second: h.map(|h| 2.25 / (h * h)),
             axes,
             naxes,
+            div: [
+                FastDiv::new(grid.strides3()[0]),
+                FastDiv::new(grid.strides3()[1]),
+            ],
         }
     }
 
@@ -104,6 +110,56 @@ impl Stencil {
     #[inline]
     pub fn axes(&self) -> &[usize] {
         &self.axes[..self.naxes]
+    }
+
+    /// Padded 3D index of linear index `i` (as [`Grid::unravel`], without a
+    /// division instruction).
+    ///
+    /// [`Grid::unravel`]: crate::numerics::grid::Grid::unravel
+    #[inline]
+    pub fn unravel(&self, i: usize) -> [usize; 3] {
+        let a = self.div[0].div(i);
+        let r = i - a * self.strides[0];
+        let b = self.div[1].div(r);
+        [a, b, r - b * self.strides[1]]
+    }
+}
+
+/// Division of a linear index (`< 2^32`, see [`MAX_CELLS`]) by a fixed
+/// divisor `d < 2^32` as a multiplication: `x / d = ⌊M x / 2^64⌋` with
+/// `M = ⌈2^64 / d⌉`, exact for every 32-bit `x` and `d` (Lemire, Kaser and
+/// Kurz 2019, "Faster remainder by direct computation", theorem 1 with
+/// `F = 64 ≥ N + log2 d`).
+///
+/// [`MAX_CELLS`]: crate::numerics::grid::MAX_CELLS
+#[derive(Debug, Clone, Copy)]
+struct FastDiv {
+    d: usize,
+    /// `⌈2^64 / d⌉`, or 0 when `d = 1` (no multiplication then).
+    m: u64,
+}
+
+impl FastDiv {
+    fn new(d: usize) -> Self {
+        let d = d.max(1);
+        let m = if d == 1 {
+            0
+        } else {
+            // ⌈2^64 / d⌉ = ⌊(2^64 − 1) / d⌋ + 1 for every d ≥ 2 (whether or
+            // not d divides 2^64), and it fits: it is at most 2^63.
+            u64::MAX / d as u64 + 1
+        };
+        Self { d, m }
+    }
+
+    #[inline]
+    fn div(&self, x: usize) -> usize {
+        if self.d == 1 {
+            x
+        } else {
+            debug_assert!(x <= u32::MAX as usize);
+            ((u128::from(self.m) * x as u128) >> 64) as usize
+        }
     }
 }
 
@@ -269,7 +325,7 @@ pub(super) fn update<K: Fn(usize) -> bool>(
 
 /// [`update`] for neighbours that all carry one label (or when labels do not matter).
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 fn update_one<K: Fn(usize) -> bool>(
     st: &Stencil,
     i: usize,
@@ -381,12 +437,87 @@ fn update_one<K: Fn(usize) -> bool>(
     v.is_finite().then(|| (v, labels[j]))
 }
 
+/// [`update`] for the first-order unfactored scheme when labels do not
+/// matter (one source): the same value with the same arithmetic, without the
+/// bookkeeping of the general update (no labels, no second neighbours, no
+/// per-axis records).
+///
+/// Returns the new value of cell `i`, or `None` if no neighbour is known or
+/// the value would not be finite. Never returns NaN.
+#[inline(always)]
+pub(super) fn first_order<K: Fn(usize) -> bool>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    known: K,
+) -> Option<f64> {
+    // (b_k, c_k², h_k) of the axes with a known neighbour, in axis order.
+    let mut t = [(0.0f64, 0.0f64, 0.0f64); 3];
+    let mut n = 0;
+    for &k in st.axes() {
+        let s = st.strides[k];
+        let mut a = f64::INFINITY;
+        let mut found = false;
+        if idx[k] > 0 && known(i - s) {
+            a = u[i - s];
+            found = true;
+        }
+        if idx[k] + 1 < st.shape[k] && known(i + s) && u[i + s] < a {
+            a = u[i + s];
+            found = true;
+        }
+        if found {
+            t[n] = (a, st.inv_h2[k], st.h[k]);
+            n += 1;
+        }
+    }
+    let t = &mut t[..n];
+    // Stable insertion sort by b (as `solve_terms`).
+    for a in 1..t.len() {
+        let mut b = a;
+        while b > 0 && t[b].0 < t[b - 1].0 {
+            t.swap(b, b - 1);
+            b -= 1;
+        }
+    }
+    let b0 = t.first()?.0;
+    let w2 = w * w;
+    let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
+    for m in 0..t.len() {
+        let (b, c2, _) = t[m];
+        let d = b - b0;
+        sa += c2;
+        sb += c2 * d;
+        sc += c2 * d * d;
+        let disc = sb * sb - sa * (sc - w2);
+        if disc.is_nan() || disc < 0.0 {
+            break;
+        }
+        let v = (sb + disc.sqrt()) / sa;
+        if m + 1 == t.len() || v <= t[m + 1].0 - b0 {
+            let v = b0 + v;
+            if v.is_finite() && v >= b0 {
+                return Some(v);
+            }
+            break;
+        }
+    }
+    // Only reached through overflow or rounding: the one-axis update.
+    let v = t
+        .iter()
+        .map(|&(a, _, h)| a + w * h)
+        .min_by(|x, y| x.total_cmp(y))?;
+    v.is_finite().then_some(v)
+}
+
 /// Caps a second-order or factored value at the cost of one straight step
 /// to an upwind neighbour, `a_k + h_k max(W(x), W(x + σ e_k))` (the
 /// larger end cost bounds the step's true cost to `O(h³)`). First-order
 /// unfactored values satisfy it already; the others can overshoot it where
 /// the cost is rough, which would break `U(x) ≤ U(y) + max W |x − y|`.
-#[inline]
+#[inline(always)]
 fn cap(
     st: &Stencil,
     ax: &[Axis],
@@ -408,7 +539,7 @@ fn cap(
     best
 }
 
-#[inline]
+#[inline(always)]
 fn first_term(st: &Stencil, a: &Axis) -> Term {
     Term {
         b: a.a1,
@@ -419,7 +550,7 @@ fn first_term(st: &Stencil, a: &Axis) -> Term {
 }
 
 /// The label of the active term with the smallest upwind value.
-#[inline]
+#[inline(always)]
 fn label_of(t: &[Term], labels: &[i32]) -> i32 {
     let mut best = &t[0];
     for x in &t[1..] {
@@ -431,7 +562,7 @@ fn label_of(t: &[Term], labels: &[i32]) -> i32 {
 }
 
 /// The factored update (see the module documentation), or `None` to fall back.
-#[inline]
+#[inline(always)]
 fn factored<K: Fn(usize) -> bool>(
     st: &Stencil,
     idx: [usize; 3],
@@ -558,7 +689,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
 
 /// Solves `Σ c2_k ((U − b_k)⁺)² = rhs` (`rhs > 0`): sorts the terms by `b`
 /// and returns the root and the number of active (leading) terms.
-#[inline]
+#[inline(always)]
 fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, usize)> {
     // Insertion sort of at most 3 terms.
     for a in 1..t.len() {
@@ -655,6 +786,24 @@ mod tests {
         let u = vec![f64::INFINITY, 2.0, f64::INFINITY, f64::INFINITY, 7.0];
         let (v, _) = run(&g, &u, [0, 0, 2], 2.0, true).unwrap();
         assert_eq!(v, 4.0);
+    }
+
+    #[test]
+    fn fast_unravel_matches_the_grid() {
+        for shape in [[1usize, 7, 13], [5, 1, 9], [3, 4, 1], [2, 65537, 3]] {
+            let g = Grid::unit(&shape).unwrap();
+            let st = Stencil::new(&g);
+            for i in (0..g.len()).step_by(7).chain([g.len() - 1]) {
+                assert_eq!(st.unravel(i), g.unravel(i), "{shape:?} {i}");
+            }
+        }
+        // Largest numerators and awkward divisors, against plain division.
+        for d in [2usize, 3, 7, 1000, 65_535, 65_536, 65_537, 4_000_000_007] {
+            let f = FastDiv::new(d);
+            for x in [0usize, 1, d - 1, d, d + 1, 4_294_967_279, u32::MAX as usize] {
+                assert_eq!(f.div(x), x / d, "{x} / {d}");
+            }
+        }
     }
 
     #[test]
