@@ -183,9 +183,11 @@ impl IndexedHeap {
         loop {
             let first = ARITY * p + 1;
             let c = if let Some(ch) = self.entries.get(first..first + ARITY) {
-                let a = usize::from(ch[1].key < ch[0].key);
-                let b = 2 + usize::from(ch[3].key < ch[2].key);
-                first + if ch[b].key < ch[a].key { b } else { a }
+                // Keys stay in registers: no reload of the two winners.
+                let (k0, k1, k2, k3) = (ch[0].key, ch[1].key, ch[2].key, ch[3].key);
+                let (ka, a) = if k1 < k0 { (k1, 1) } else { (k0, 0) };
+                let (kb, b) = if k3 < k2 { (k3, 3) } else { (k2, 2) };
+                first + if kb < ka { b } else { a }
             } else if first < n {
                 self.min_child(first, n)
             } else {
