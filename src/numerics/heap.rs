@@ -53,11 +53,41 @@ struct Entry {
     id: u32,
 }
 
+/// Where an [`IndexedHeap`] keeps the slot or tag of each cell: a `Vec<u32>`
+/// by default, or any per-cell storage that can hold 32 bits next to other
+/// data (fast marching keeps them in the NaNs of its distance array).
+pub trait Positions {
+    /// The slot (`< FIRST_TAG`) or tag of cell `id`.
+    fn get(&self, id: u32) -> u32;
+    /// Stores the slot or tag of cell `id`.
+    fn set(&mut self, id: u32, p: u32);
+    /// Number of cells.
+    fn len(&self) -> usize;
+    /// True when there is no cell.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl Positions for Vec<u32> {
+    #[inline(always)]
+    fn get(&self, id: u32) -> u32 {
+        self[id as usize]
+    }
+    #[inline(always)]
+    fn set(&mut self, id: u32, p: u32) {
+        self[id as usize] = p;
+    }
+    fn len(&self) -> usize {
+        self.as_slice().len()
+    }
+}
+
 /// An indexed 4-ary min-heap over cell indices `0..n` keyed by `f64`.
 #[derive(Debug, Clone)]
-pub struct IndexedHeap {
+pub struct IndexedHeap<P = Vec<u32>> {
     entries: Vec<Entry>,
-    pos: Vec<u32>,
+    pos: P,
 }
 
 impl IndexedHeap {
@@ -66,11 +96,41 @@ impl IndexedHeap {
     /// # Panics
     /// If `n > FIRST_TAG` (never for the cells of a [`crate::numerics::Grid`]).
     pub fn new(n: usize) -> Self {
+        Self::with_positions(vec![ABSENT; n])
+    }
+}
+
+impl<P: Positions> IndexedHeap<P> {
+    /// An empty heap over the cells of `pos`, which must all hold tags
+    /// (`>= FIRST_TAG`).
+    ///
+    /// # Panics
+    /// If there are more than `FIRST_TAG` cells.
+    pub fn with_positions(pos: P) -> Self {
+        let n = pos.len();
         assert!(n <= FIRST_TAG as usize, "{n} cells do not fit the heap");
         Self {
             entries: Vec::new(),
-            pos: vec![ABSENT; n],
+            pos,
         }
+    }
+
+    /// The position storage.
+    #[inline(always)]
+    pub fn positions(&self) -> &P {
+        &self.pos
+    }
+
+    /// The position storage, mutably: the caller may change what it stores
+    /// for cells that are not in the heap, never for those that are.
+    #[inline(always)]
+    pub fn positions_mut(&mut self) -> &mut P {
+        &mut self.pos
+    }
+
+    /// Gives the position storage back.
+    pub fn into_positions(self) -> P {
+        self.pos
     }
 
     /// Number of entries.
@@ -88,26 +148,26 @@ impl IndexedHeap {
     /// True if cell `id` is in the heap.
     #[inline]
     pub fn contains(&self, id: u32) -> bool {
-        self.pos[id as usize] < FIRST_TAG
+        self.pos.get(id) < FIRST_TAG
     }
 
     /// The slot of cell `id` in the heap (`< FIRST_TAG`), or its tag.
     #[inline]
     pub fn state(&self, id: u32) -> u32 {
-        self.pos[id as usize]
+        self.pos.get(id)
     }
 
     /// Tags cell `id`, which must not be in the heap, with `tag >= FIRST_TAG`.
     #[inline]
     pub fn tag(&mut self, id: u32, tag: u32) {
         debug_assert!(tag >= FIRST_TAG && !self.contains(id));
-        self.pos[id as usize] = tag;
+        self.pos.set(id, tag);
     }
 
     /// The key of cell `id`, if it is in the heap.
     #[inline]
     pub fn key(&self, id: u32) -> Option<f64> {
-        match self.pos[id as usize] {
+        match self.pos.get(id) {
             p if p < FIRST_TAG => Some(self.entries[p as usize].key),
             _ => None,
         }
@@ -132,7 +192,7 @@ impl IndexedHeap {
     /// already in the heap (decrease-key or increase-key).
     #[inline(always)]
     pub fn set_key(&mut self, id: u32, key: f64) {
-        match self.pos[id as usize] {
+        match self.pos.get(id) {
             p if p >= FIRST_TAG => self.push(id, key),
             p => {
                 let p = p as usize;
@@ -151,7 +211,7 @@ impl IndexedHeap {
     /// smaller than the current one; returns true if the heap changed.
     #[inline(always)]
     pub fn push_or_decrease(&mut self, id: u32, key: f64) -> bool {
-        match self.pos[id as usize] {
+        match self.pos.get(id) {
             p if p >= FIRST_TAG => {
                 self.push(id, key);
                 true
@@ -175,7 +235,7 @@ impl IndexedHeap {
     pub fn pop(&mut self) -> Option<(u32, f64)> {
         let last = self.entries.pop()?;
         let Some(&top) = self.entries.first() else {
-            self.pos[last.id as usize] = ABSENT;
+            self.pos.set(last.id, ABSENT);
             return Some((last.id, last.key));
         };
         let n = self.entries.len();
@@ -195,18 +255,18 @@ impl IndexedHeap {
             };
             let ce = self.entries[c];
             self.entries[p] = ce;
-            self.pos[ce.id as usize] = p as u32;
+            self.pos.set(ce.id, p as u32);
             p = c;
         }
         self.sift_up(p, last);
-        self.pos[top.id as usize] = ABSENT;
+        self.pos.set(top.id, ABSENT);
         Some((top.id, top.key))
     }
 
     /// Removes every entry (positions are reset in `O(len)`).
     pub fn clear(&mut self) {
         for e in &self.entries {
-            self.pos[e.id as usize] = ABSENT;
+            self.pos.set(e.id, ABSENT);
         }
         self.entries.clear();
     }
@@ -235,11 +295,11 @@ impl IndexedHeap {
                 break;
             }
             self.entries[p] = pe;
-            self.pos[pe.id as usize] = p as u32;
+            self.pos.set(pe.id, p as u32);
             p = parent;
         }
         self.entries[p] = e;
-        self.pos[e.id as usize] = p as u32;
+        self.pos.set(e.id, p as u32);
     }
 
     /// Places `e` at slot `p` or below, moving smaller children up.
@@ -257,22 +317,24 @@ impl IndexedHeap {
                 break;
             }
             self.entries[p] = ce;
-            self.pos[ce.id as usize] = p as u32;
+            self.pos.set(ce.id, p as u32);
             p = c;
         }
         self.entries[p] = e;
-        self.pos[e.id as usize] = p as u32;
+        self.pos.set(e.id, p as u32);
     }
 
     #[cfg(test)]
     fn check(&self) {
         for (p, e) in self.entries.iter().enumerate() {
-            assert_eq!(self.pos[e.id as usize] as usize, p);
+            assert_eq!(self.pos.get(e.id) as usize, p);
             if p > 0 {
                 assert!(self.entries[(p - 1) / ARITY].key <= e.key);
             }
         }
-        let present = self.pos.iter().filter(|&&p| p < FIRST_TAG).count();
+        let present = (0..self.pos.len() as u32)
+            .filter(|&i| self.pos.get(i) < FIRST_TAG)
+            .count();
         assert_eq!(present, self.entries.len());
     }
 }

@@ -33,10 +33,10 @@
 //! 65536 frozen cells and at the end.
 //!
 //! Memory beyond the input cost and the output `U` (`f64`) and labels
-//! (`i32`): 4 bytes per cell for the state, which shares its word with the
-//! heap position, plus 16 bytes per band or seed cell (at most 20 bytes per
-//! cell); 1 byte per cell more when targets are given and 8 when the freezing
-//! order is recorded (an output).
+//! (`i32`): nothing per cell for the state, which lives in the NaNs of `U`
+//! while the march runs (see `Cells`), and 16 bytes per band or seed cell
+//! (at most 16 bytes per cell); 1 byte per cell more when targets are given
+//! and 8 when the freezing order is recorded (an output).
 //!
 //! [`StopRules`]: super::StopRules
 
@@ -46,14 +46,14 @@ use super::{
     InitialFront, Order, StopReason,
 };
 use crate::numerics::control::Control;
-use crate::numerics::heap::{IndexedHeap, ABSENT, FIRST_TAG};
+use crate::numerics::heap::{IndexedHeap, Positions, ABSENT, FIRST_TAG};
 use crate::numerics::metric::IsotropicCost;
 
-// Cell states, kept in the heap's position array (a slot `< FIRST_TAG`
-// means Trial, i.e. in the band).
+// Cell states, kept with `U` in [`Cells`] (a slot `< FIRST_TAG` means
+// Trial, i.e. in the band).
 /// Not reached yet.
 const FAR: u32 = ABSENT;
-/// Final value.
+/// Final value (the cell holds its finite `U`).
 const FROZEN: u32 = FIRST_TAG;
 /// Never entered.
 const WALL: u32 = FIRST_TAG + 1;
@@ -64,6 +64,42 @@ const SEED: u32 = FIRST_TAG + 2;
 #[inline]
 fn open(state: u32) -> bool {
     state < FIRST_TAG || state == FAR
+}
+
+/// `U` and the state of every cell in one `f64`: a frozen cell holds its
+/// (finite) value; any other cell holds a NaN whose low 32 bits are its heap
+/// slot or tag. One array instead of two halves the cache lines and pages
+/// touched per neighbour (3D grids are memory bound), and "known" is
+/// `u < +inf`, which is false for every NaN.
+struct Cells(Vec<f64>);
+
+/// The high bits of a boxed slot or tag: a quiet NaN that arithmetic never
+/// produces here (values are never NaN).
+const BOX: u64 = 0x7ffc_0000_0000_0000;
+
+impl Cells {
+    fn new(n: usize) -> Self {
+        Self(vec![f64::from_bits(BOX | u64::from(FAR)); n])
+    }
+}
+
+impl Positions for Cells {
+    #[inline(always)]
+    fn get(&self, id: u32) -> u32 {
+        let b = self.0[id as usize].to_bits();
+        if b >> 32 == BOX >> 32 {
+            b as u32
+        } else {
+            FROZEN
+        }
+    }
+    #[inline(always)]
+    fn set(&mut self, id: u32, p: u32) {
+        self.0[id as usize] = f64::from_bits(BOX | u64::from(p));
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
 }
 
 const CANCEL_EVERY: usize = 4096;
@@ -90,9 +126,8 @@ pub(super) fn solve(
 
     let mut m = March {
         st: &st,
-        u: vec![f64::INFINITY; n],
         labels: vec![-1i32; n],
-        heap: IndexedHeap::new(n),
+        heap: IndexedHeap::with_positions(Cells::new(n)),
         seeds: Vec::with_capacity(front.cells.len()),
         is_target: Vec::new(),
         targets_left: 0,
@@ -117,7 +152,6 @@ pub(super) fn solve(
     // The seeds are frozen in increasing value, interleaved with the band:
     // a sorted queue beside the heap (ties go to the seed).
     for c in &front.cells {
-        m.u[c.index] = c.value;
         m.labels[c.index] = c.label;
         m.heap.tag(c.index as u32, SEED);
         m.seeds.push((c.value, c.index as u32));
@@ -143,19 +177,17 @@ pub(super) fn solve(
         m.run(&kernel, options, control)?
     };
     let March {
-        mut u,
         mut labels,
         heap,
         order,
         ..
     } = m;
-
-    if stop != StopReason::Completed {
-        for (i, (v, l)) in u.iter_mut().zip(labels.iter_mut()).enumerate() {
-            if heap.state(i as u32) != FROZEN {
-                *v = f64::INFINITY;
-                *l = -1;
-            }
+    // Every cell not frozen (early stop, unreachable, wall) gets +inf and -1.
+    let mut u = heap.into_positions().0;
+    for (v, l) in u.iter_mut().zip(labels.iter_mut()) {
+        if v.is_nan() {
+            *v = f64::INFINITY;
+            *l = -1;
         }
     }
     control.report(1.0);
@@ -165,10 +197,9 @@ pub(super) fn solve(
 /// The working state of a solve.
 struct March<'a> {
     st: &'a Stencil,
-    u: Vec<f64>,
     labels: Vec<i32>,
-    /// The band; its position array also holds every cell's state.
-    heap: IndexedHeap,
+    /// The band; its position storage holds `U` and every cell's state.
+    heap: IndexedHeap<Cells>,
     /// Seed cells `(value, index)` sorted by value; the first `next_seed` are frozen.
     seeds: Vec<(f64, u32)>,
     is_target: Vec<bool>,
@@ -185,7 +216,7 @@ impl March<'_> {
         options: &EikonalOptions,
         control: &Control<'_>,
     ) -> Result<(StopReason, usize), EikonalError> {
-        let n = self.u.len();
+        let n = self.labels.len();
         let st = self.st;
         let mut next_seed = 0usize;
         let mut frozen = 0usize;
@@ -220,8 +251,8 @@ impl March<'_> {
             } else {
                 self.heap.pop();
             }
-            self.heap.tag(id, FROZEN);
             let i = id as usize;
+            self.heap.positions_mut().0[i] = key;
             if let Some(o) = self.order.as_mut() {
                 o[i] = frozen as i64;
             }
@@ -246,12 +277,9 @@ impl March<'_> {
         };
         if !K::LABELS {
             // One source: every reached cell has label 0.
-            for (i, l) in self.labels.iter_mut().enumerate() {
-                *l = if self.heap.state(i as u32) == FROZEN {
-                    0
-                } else {
-                    -1
-                };
+            let u = &self.heap.positions().0;
+            for (l, v) in self.labels.iter_mut().zip(u) {
+                *l = if *v < f64::INFINITY { 0 } else { -1 };
             }
         }
         Ok((stop, frozen))
@@ -265,8 +293,7 @@ impl March<'_> {
         }
         let mut jdx = idx;
         jdx[k] = jk;
-        if let Some((v, l)) = kernel.value(j, jdx, &self.u, &self.labels, &self.heap) {
-            self.u[j] = v;
+        if let Some((v, l)) = kernel.value(j, jdx, &self.heap.positions().0, &self.labels) {
             if K::LABELS {
                 self.labels[j] = l;
             }
@@ -281,15 +308,9 @@ trait Kernel {
     /// cell gets label 0 at the end.
     const LABELS: bool;
 
-    /// The new value and label of cell `j` (padded index `jdx`), or `None`.
-    fn value(
-        &self,
-        j: usize,
-        jdx: [usize; 3],
-        u: &[f64],
-        labels: &[i32],
-        heap: &IndexedHeap,
-    ) -> Option<(f64, i32)>;
+    /// The new value and label of cell `j` (padded index `jdx`), or `None`;
+    /// `u` is finite exactly on the frozen cells (NaN or `+inf` elsewhere).
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)>;
 }
 
 /// The general update of [`super::update`]: either order, factoring,
@@ -306,14 +327,7 @@ impl Kernel for General<'_> {
     const LABELS: bool = true;
 
     #[inline]
-    fn value(
-        &self,
-        j: usize,
-        jdx: [usize; 3],
-        u: &[f64],
-        labels: &[i32],
-        heap: &IndexedHeap,
-    ) -> Option<(f64, i32)> {
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
         update(
             self.st,
             j,
@@ -321,7 +335,7 @@ impl Kernel for General<'_> {
             self.cost.at(j),
             u,
             labels,
-            |x| heap.state(x as u32) == FROZEN,
+            |x| u[x] < f64::INFINITY,
             self.second,
             self.factor,
             self.multi,
@@ -359,15 +373,7 @@ impl<C: CostAt> Kernel for FirstOrder<'_, C> {
     const LABELS: bool = false;
 
     #[inline]
-    fn value(
-        &self,
-        j: usize,
-        jdx: [usize; 3],
-        u: &[f64],
-        _labels: &[i32],
-        heap: &IndexedHeap,
-    ) -> Option<(f64, i32)> {
-        let known = |x: usize| heap.state(x as u32) == FROZEN;
-        first_order(self.st, j, jdx, self.cost.at(j), u, known).map(|v| (v, 0))
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
+        first_order(self.st, j, jdx, self.cost.at(j), u).map(|v| (v, 0))
     }
 }

@@ -442,33 +442,33 @@ fn update_one<K: Fn(usize) -> bool>(
 /// bookkeeping of the general update (no labels, no second neighbours, no
 /// per-axis records).
 ///
+/// A neighbour is known exactly when its value in `u` is finite (`u` may
+/// hold NaN or `+inf` on the others).
+///
 /// Returns the new value of cell `i`, or `None` if no neighbour is known or
 /// the value would not be finite. Never returns NaN.
 #[inline(always)]
-pub(super) fn first_order<K: Fn(usize) -> bool>(
+pub(super) fn first_order(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
     w: f64,
     u: &[f64],
-    known: K,
 ) -> Option<f64> {
     // (b_k, c_k², h_k) of the axes with a known neighbour, in axis order.
     let mut t = [(0.0f64, 0.0f64, 0.0f64); 3];
     let mut n = 0;
     for &k in st.axes() {
         let s = st.strides[k];
+        // `<` is false for NaN and +inf: unknown neighbours drop out.
         let mut a = f64::INFINITY;
-        let mut found = false;
-        if idx[k] > 0 && known(i - s) {
+        if idx[k] > 0 && u[i - s] < a {
             a = u[i - s];
-            found = true;
         }
-        if idx[k] + 1 < st.shape[k] && known(i + s) && u[i + s] < a {
+        if idx[k] + 1 < st.shape[k] && u[i + s] < a {
             a = u[i + s];
-            found = true;
         }
-        if found {
+        if a < f64::INFINITY {
             t[n] = (a, st.inv_h2[k], st.h[k]);
             n += 1;
         }
