@@ -40,7 +40,7 @@
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{first_order, update, Factor, Stencil};
+use super::update::{first_order, one_axis_root, update, Factor, Stencil};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
@@ -163,7 +163,11 @@ pub(super) fn solve(
     // has a kernel of its own, monomorphised on the kind of cost.
     let (stop, frozen) = if !second && factor.is_none() && !multi {
         match cost.uniform_value() {
-            Some(w) => m.run(&FirstOrder { st: &st, cost: w }, options, control)?,
+            Some(w) => {
+                let one = [0, 1, 2].map(|k| one_axis_root(&st, k, w));
+                let cost = Uniform { w, one };
+                m.run(&FirstOrder { st: &st, cost }, options, control)?
+            }
             None => m.run(&FirstOrder { st: &st, cost }, options, control)?,
         }
     } else {
@@ -347,19 +351,35 @@ impl Kernel for General<'_> {
 /// A cost lookup, monomorphised: a constant or the general field.
 trait CostAt {
     fn at(&self, i: usize) -> f64;
+    /// [`one_axis_root`] of axis `k` at a cell of cost `w`.
+    fn one_axis(&self, st: &Stencil, k: usize, w: f64) -> f64;
 }
 
-impl CostAt for f64 {
-    #[inline]
+/// A uniform cost, with its one-axis roots precomputed per axis.
+struct Uniform {
+    w: f64,
+    one: [f64; 3],
+}
+
+impl CostAt for Uniform {
+    #[inline(always)]
     fn at(&self, _: usize) -> f64 {
-        *self
+        self.w
+    }
+    #[inline(always)]
+    fn one_axis(&self, _: &Stencil, k: usize, _: f64) -> f64 {
+        self.one[k]
     }
 }
 
 impl CostAt for &IsotropicCost<'_> {
-    #[inline]
+    #[inline(always)]
     fn at(&self, i: usize) -> f64 {
         IsotropicCost::at(self, i)
+    }
+    #[inline(always)]
+    fn one_axis(&self, st: &Stencil, k: usize, w: f64) -> f64 {
+        one_axis_root(st, k, w)
     }
 }
 
@@ -374,6 +394,8 @@ impl<C: CostAt> Kernel for FirstOrder<'_, C> {
 
     #[inline]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
-        first_order(self.st, j, jdx, self.cost.at(j), u).map(|v| (v, 0))
+        let w = self.cost.at(j);
+        let one = |k| self.cost.one_axis(self.st, k, w);
+        first_order(self.st, j, jdx, w, u, one).map(|v| (v, 0))
     }
 }

@@ -454,9 +454,10 @@ pub(super) fn first_order(
     idx: [usize; 3],
     w: f64,
     u: &[f64],
+    one_axis: impl Fn(usize) -> f64,
 ) -> Option<f64> {
-    // (b_k, c_k², h_k) of the axes with a known neighbour, in axis order.
-    let mut t = [(0.0f64, 0.0f64, 0.0f64); 3];
+    // (b_k, c_k², h_k, k) of the axes with a known neighbour, in axis order.
+    let mut t = [(0.0f64, 0.0f64, 0.0f64, 0usize); 3];
     let mut n = 0;
     for &k in st.axes() {
         let s = st.strides[k];
@@ -469,7 +470,7 @@ pub(super) fn first_order(
             a = u[i + s];
         }
         if a < f64::INFINITY {
-            t[n] = (a, st.inv_h2[k], st.h[k]);
+            t[n] = (a, st.inv_h2[k], st.h[k], k);
             n += 1;
         }
     }
@@ -484,32 +485,70 @@ pub(super) fn first_order(
     }
     let b0 = t.first()?.0;
     let w2 = w * w;
-    let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
-    for m in 0..t.len() {
-        let (b, c2, _) = t[m];
-        let d = b - b0;
-        sa += c2;
-        sb += c2 * d;
-        sc += c2 * d * d;
+    // The root with the first term alone, `√(c² W²) / c²` (what
+    // `solve_terms` computes at its first step).
+    let r0 = one_axis(t[0].3);
+    let root = if let [_, (b1, c1, _, _)] = *t {
+        // Two terms: the two-term root is computed alongside `r0` (two
+        // independent chains), then the causal one is kept.
+        let d = b1 - b0;
+        let sa = t[0].1 + c1;
+        let sb = c1 * d;
+        let sc = c1 * d * d;
         let disc = sb * sb - sa * (sc - w2);
-        if disc.is_nan() || disc < 0.0 {
-            break;
+        let v2 = (sb + disc.sqrt()) / sa;
+        if r0 <= d {
+            Some(r0)
+        } else if disc.is_nan() || disc < 0.0 {
+            None
+        } else {
+            Some(v2)
         }
-        let v = (sb + disc.sqrt()) / sa;
-        if m + 1 == t.len() || v <= t[m + 1].0 - b0 {
-            let v = b0 + v;
-            if v.is_finite() && v >= b0 {
-                return Some(v);
+    } else {
+        let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
+        let mut root = None;
+        for m in 0..t.len() {
+            let (b, c2, _, _) = t[m];
+            let d = b - b0;
+            sa += c2;
+            sb += c2 * d;
+            sc += c2 * d * d;
+            let v = if m == 0 {
+                r0
+            } else {
+                let disc = sb * sb - sa * (sc - w2);
+                if disc.is_nan() || disc < 0.0 {
+                    break;
+                }
+                (sb + disc.sqrt()) / sa
+            };
+            if m + 1 == t.len() || v <= t[m + 1].0 - b0 {
+                root = Some(v);
+                break;
             }
-            break;
+        }
+        root
+    };
+    if let Some(v) = root {
+        let v = b0 + v;
+        if v.is_finite() && v >= b0 {
+            return Some(v);
         }
     }
     // Only reached through overflow or rounding: the one-axis update.
     let v = t
         .iter()
-        .map(|&(a, _, h)| a + w * h)
+        .map(|&(a, _, h, _)| a + w * h)
         .min_by(|x, y| x.total_cmp(y))?;
     v.is_finite().then_some(v)
+}
+
+/// The first-order root with one axis, `√(c_k² W²) / c_k²` with
+/// `c_k² = 1/h_k²` (as [`first_order`] and `solve_terms` compute it).
+#[inline(always)]
+pub(super) fn one_axis_root(st: &Stencil, k: usize, w: f64) -> f64 {
+    let c2 = st.inv_h2[k];
+    (c2 * (w * w)).sqrt() / c2
 }
 
 /// Caps a second-order or factored value at the cost of one straight step
