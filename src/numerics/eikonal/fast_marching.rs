@@ -290,7 +290,7 @@ impl March<'_> {
     }
 
     /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
-    #[inline]
+    #[inline(always)]
     fn visit<K: Kernel>(&mut self, kernel: &K, j: usize, idx: [usize; 3], k: usize, jk: usize) {
         if !open(self.heap.state(j as u32)) {
             return;
