@@ -40,7 +40,7 @@
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{first_order, one_axis_root, update, Factor, Stencil};
+use super::update::{first_order, one_axis_root, update, Factor, OneSource, Stencil};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
@@ -171,14 +171,33 @@ pub(super) fn solve(
             None => m.run(&FirstOrder { st: &st, cost }, options, control)?,
         }
     } else {
-        let kernel = General {
+        let kernel = General::<false> {
             st: &st,
             cost,
             second,
             factor: factor.as_ref(),
             multi,
         };
-        m.run(&kernel, options, control)?
+        if multi {
+            m.run(&kernel, options, control)?
+        } else {
+            // One source: every known cell has label 0, read from nowhere.
+            let General {
+                st,
+                cost,
+                second,
+                factor,
+                multi,
+            } = kernel;
+            let kernel = General::<true> {
+                st,
+                cost,
+                second,
+                factor,
+                multi,
+            };
+            m.run(&kernel, options, control)?
+        }
     };
     let March {
         mut labels,
@@ -318,8 +337,9 @@ trait Kernel {
 }
 
 /// The general update of [`super::update`]: either order, factoring,
-/// several sources.
-struct General<'a> {
+/// several sources; `ONE` when there is one source (labels are then not
+/// read nor written during the march).
+struct General<'a, const ONE: bool> {
     st: &'a Stencil,
     cost: &'a IsotropicCost<'a>,
     second: bool,
@@ -327,24 +347,23 @@ struct General<'a> {
     multi: bool,
 }
 
-impl Kernel for General<'_> {
-    const LABELS: bool = true;
+impl<const ONE: bool> Kernel for General<'_, ONE> {
+    const LABELS: bool = !ONE;
 
     #[inline]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
-        update(
-            self.st,
-            j,
-            jdx,
-            self.cost.at(j),
-            u,
-            labels,
-            |x| u[x] < f64::INFINITY,
-            self.second,
-            self.factor,
-            self.multi,
-            self.cost,
-        )
+        let w = self.cost.at(j);
+        let known = |x: usize| u[x] < f64::INFINITY;
+        let (second, factor, multi, cost) = (self.second, self.factor, self.multi, self.cost);
+        if ONE {
+            update(
+                self.st, j, jdx, w, u, &OneSource, known, second, factor, multi, cost,
+            )
+        } else {
+            update(
+                self.st, j, jdx, w, u, labels, known, second, factor, multi, cost,
+            )
+        }
     }
 }
 

@@ -163,6 +163,30 @@ impl FastDiv {
     }
 }
 
+/// Where the update reads the labels of known cells: the label array, or
+/// nothing at all when there is one source (every known cell has label 0).
+pub(super) trait Labels {
+    /// The label of known cell `j`.
+    fn at(&self, j: usize) -> i32;
+}
+
+impl Labels for [i32] {
+    #[inline(always)]
+    fn at(&self, j: usize) -> i32 {
+        self[j]
+    }
+}
+
+/// The labels of a solve with one source: 0 for every known cell.
+pub(super) struct OneSource;
+
+impl Labels for OneSource {
+    #[inline(always)]
+    fn at(&self, _: usize) -> i32 {
+        0
+    }
+}
+
 /// A point source as seen by factoring.
 #[derive(Debug, Clone, Copy)]
 struct FactorPoint {
@@ -265,13 +289,13 @@ struct Term {
 /// or the value would not be finite. Never returns NaN.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub(super) fn update<K: Fn(usize) -> bool>(
+pub(super) fn update<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
     w: f64,
     u: &[f64],
-    labels: &[i32],
+    labels: &L,
     known: K,
     second: bool,
     factor: Option<&Factor>,
@@ -287,8 +311,8 @@ pub(super) fn update<K: Fn(usize) -> bool>(
             let lo = (idx[k] > 0).then(|| i - s);
             let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
             for j in [lo, hi].into_iter().flatten() {
-                if known(j) && !ls[..nl].contains(&labels[j]) {
-                    ls[nl] = labels[j];
+                if known(j) && !ls[..nl].contains(&labels.at(j)) {
+                    ls[nl] = labels.at(j);
                     nl += 1;
                 }
             }
@@ -306,7 +330,7 @@ pub(super) fn update<K: Fn(usize) -> bool>(
                     w,
                     u,
                     labels,
-                    |j| labels[j] == l && known(j),
+                    |j| labels.at(j) == l && known(j),
                     second,
                     factor,
                     cost,
@@ -326,13 +350,13 @@ pub(super) fn update<K: Fn(usize) -> bool>(
 /// [`update`] for neighbours that all carry one label (or when labels do not matter).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn update_one<K: Fn(usize) -> bool>(
+fn update_one<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
     w: f64,
     u: &[f64],
-    labels: &[i32],
+    labels: &L,
     known: K,
     second: bool,
     factor: Option<&Factor>,
@@ -434,7 +458,7 @@ fn update_one<K: Fn(usize) -> bool>(
         .iter()
         .map(|a| (a.a1 + w * st.h[a.k], a.j1))
         .min_by(|x, y| x.0.total_cmp(&y.0))?;
-    v.is_finite().then(|| (v, labels[j]))
+    v.is_finite().then(|| (v, labels.at(j)))
 }
 
 /// [`update`] for the first-order unfactored scheme when labels do not
@@ -557,13 +581,13 @@ pub(super) fn one_axis_root(st: &Stencil, k: usize, w: f64) -> f64 {
 /// unfactored values satisfy it already; the others can overshoot it where
 /// the cost is rough, which would break `U(x) ≤ U(y) + max W |x − y|`.
 #[inline(always)]
-fn cap(
+fn cap<L: Labels + ?Sized>(
     st: &Stencil,
     ax: &[Axis],
     w: f64,
     cost: &IsotropicCost<'_>,
     r: (f64, i32),
-    labels: &[i32],
+    labels: &L,
 ) -> (f64, i32) {
     let mut best = r;
     for a in ax {
@@ -571,7 +595,7 @@ fn cap(
         if a.a1 + w * h < best.0 {
             let bound = a.a1 + h * w.max(cost.at(a.j1));
             if bound < best.0 {
-                best = (bound, labels[a.j1]);
+                best = (bound, labels.at(a.j1));
             }
         }
     }
@@ -590,29 +614,29 @@ fn first_term(st: &Stencil, a: &Axis) -> Term {
 
 /// The label of the active term with the smallest upwind value.
 #[inline(always)]
-fn label_of(t: &[Term], labels: &[i32]) -> i32 {
+fn label_of<L: Labels + ?Sized>(t: &[Term], labels: &L) -> i32 {
     let mut best = &t[0];
     for x in &t[1..] {
         if x.a1 < best.a1 {
             best = x;
         }
     }
-    labels[best.j1]
+    labels.at(best.j1)
 }
 
 /// The factored update (see the module documentation), or `None` to fall back.
 #[inline(always)]
-fn factored<K: Fn(usize) -> bool>(
+fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     idx: [usize; 3],
     w2: f64,
     ax: &[Axis],
     strip: &Strip<'_, K>,
-    labels: &[i32],
+    labels: &L,
     f: &Factor,
 ) -> Option<(f64, i32)> {
-    let label = labels[ax[0].j1];
-    if ax[1..].iter().any(|a| labels[a.j1] != label) {
+    let label = labels.at(ax[0].j1);
+    if ax[1..].iter().any(|a| labels.at(a.j1) != label) {
         return None;
     }
     let FactorPoint { p, w: wp } = f.point(label)?;
@@ -688,7 +712,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
     /// `R` the rays' radius of curvature).
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn dv(
+    fn dv<L: Labels + ?Sized>(
         &self,
         st: &Stencil,
         idx: [usize; 3],
@@ -697,7 +721,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
         d: [f64; 3],
         wp: f64,
         label: i32,
-        labels: &[i32],
+        labels: &L,
     ) -> f64 {
         let Some(a) = ax.iter().min_by(|a, b| a.a1.total_cmp(&b.a1)) else {
             return 0.0;
@@ -708,7 +732,11 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
         let s = st.strides[k];
         let y = a.j1;
         let (lo, hi) = (y - s, y + s);
-        if !((self.known)(lo) && (self.known)(hi) && labels[lo] == label && labels[hi] == label) {
+        if !((self.known)(lo)
+            && (self.known)(hi)
+            && labels.at(lo) == label
+            && labels.at(hi) == label)
+        {
             return 0.0;
         }
         // x − p of y, then of y ∓ e_k (physical).
@@ -772,7 +800,7 @@ mod tests {
             x,
             w,
             u,
-            &labels,
+            labels.as_slice(),
             |j| u[j].is_finite(),
             second,
             None,
