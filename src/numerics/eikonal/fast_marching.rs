@@ -411,7 +411,7 @@ struct FirstOrder<'a, C> {
 impl<C: CostAt> Kernel for FirstOrder<'_, C> {
     const LABELS: bool = false;
 
-    #[inline]
+    #[inline(always)]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
         let w = self.cost.at(j);
         let one = |k| self.cost.one_axis(self.st, k, w);
