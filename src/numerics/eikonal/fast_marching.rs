@@ -166,9 +166,9 @@ pub(super) fn solve(
             Some(w) => {
                 let one = [0, 1, 2].map(|k| one_axis_root(&st, k, w));
                 let cost = Uniform { w, one };
-                m.run(&FirstOrder { st: &st, cost }, options, control)?
+                m.run_first_order(cost, options, control)?
             }
-            None => m.run(&FirstOrder { st: &st, cost }, options, control)?,
+            None => m.run_first_order(cost, options, control)?,
         }
     } else {
         let kernel = General::<false> {
@@ -231,6 +231,22 @@ struct March<'a> {
 }
 
 impl March<'_> {
+    /// [`March::run`] with the first-order kernel, its axis loops unrolled
+    /// for the usual 2D and 3D grids.
+    fn run_first_order<C: CostAt>(
+        &mut self,
+        cost: C,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let st = self.st;
+        match st.trailing() {
+            Some(2) => self.run(&FirstOrder::<C, 2> { st, cost }, options, control),
+            Some(3) => self.run(&FirstOrder::<C, 3> { st, cost }, options, control),
+            _ => self.run(&FirstOrder::<C, 0> { st, cost }, options, control),
+        }
+    }
+
     /// Freezes cells until the band is empty or a stop rule fires; returns
     /// the reason and the number of frozen cells.
     fn run<K: Kernel>(
@@ -288,7 +304,7 @@ impl March<'_> {
             }
 
             let idx = st.unravel(i);
-            for &k in st.axes() {
+            for &k in kernel.axes(st) {
                 let s = st.strides[k];
                 if idx[k] > 0 {
                     self.visit(kernel, i - s, idx, k, idx[k] - 1);
@@ -330,6 +346,12 @@ trait Kernel {
     /// Whether the kernel gives labels; if not (one source) every reached
     /// cell gets label 0 at the end.
     const LABELS: bool;
+
+    /// The axes of length > 1 ([`Stencil::axes`] or a constant equivalent).
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes()
+    }
 
     /// The new value and label of cell `j` (padded index `jdx`), or `None`;
     /// `u` is finite exactly on the frozen cells (NaN or `+inf` elsewhere).
@@ -402,19 +424,58 @@ impl CostAt for &IsotropicCost<'_> {
     }
 }
 
-/// The first-order unfactored update for one source ([`first_order`]).
-struct FirstOrder<'a, C> {
+/// The first-order unfactored update for one source ([`first_order`]);
+/// `A > 0` when the axes are the last `A` ones ([`Stencil::axes_as`]).
+struct FirstOrder<'a, C, const A: usize> {
     st: &'a Stencil,
     cost: C,
 }
 
-impl<C: CostAt> Kernel for FirstOrder<'_, C> {
+impl<C: CostAt, const A: usize> Kernel for FirstOrder<'_, C, A> {
     const LABELS: bool = false;
+
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes_as::<A>()
+    }
 
     #[inline(always)]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
         let w = self.cost.at(j);
         let one = |k| self.cost.one_axis(self.st, k, w);
-        first_order(self.st, j, jdx, w, u, one).map(|v| (v, 0))
+        first_order::<A>(self.st, j, jdx, w, u, one).map(|v| (v, 0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{solve, EikonalOptions, Order, Source};
+    use crate::numerics::{Control, EikonalProblem, Grid, IsotropicCost};
+
+    fn first_order_unit(shape: &[usize], p: Vec<f64>) -> Vec<f64> {
+        let problem = EikonalProblem {
+            grid: Grid::unit(shape).unwrap(),
+            cost: IsotropicCost::constant(1.0).unwrap(),
+            sources: vec![Source::Point(p)],
+        };
+        let o = EikonalOptions::DEFAULT
+            .with_order(Order::First)
+            .with_factoring(false);
+        let out = solve(&problem, &o, &Control::new()).unwrap();
+        out.distance.iter().copied().collect()
+    }
+
+    #[test]
+    fn unrolled_and_generic_axis_loops_agree() {
+        // (6, 7) runs the kernel unrolled for the last two axes; (6, 1, 7)
+        // has the same cells but its axes are 0 and 2 (generic loop).
+        let a = first_order_unit(&[6, 7], vec![2.3, 4.1]);
+        let b = first_order_unit(&[6, 1, 7], vec![2.3, 0.0, 4.1]);
+        assert_eq!(a, b);
+        // One axis: exact U = |x − p| beyond the seeds.
+        let c = first_order_unit(&[1, 9], vec![0.0, 2.0]);
+        for (x, u) in c.iter().enumerate() {
+            assert_eq!(*u, (x as f64 - 2.0).abs());
+        }
     }
 }

@@ -112,6 +112,29 @@ impl Stencil {
         &self.axes[..self.naxes]
     }
 
+    /// The axes of length > 1, as a constant list when `A > 0`: the last
+    /// `A` padded axes, which the caller must have checked with
+    /// [`Stencil::trailing`] (a 2D grid `(1, n0, n1)`, a 3D grid), so that
+    /// loops over it unroll with constant axis numbers. [`Stencil::axes`]
+    /// for `A = 0`.
+    #[inline(always)]
+    pub fn axes_as<const A: usize>(&self) -> &[usize] {
+        const ALL: [usize; 3] = [0, 1, 2];
+        debug_assert!(A == 0 || self.trailing() == Some(A));
+        if A > 0 && A <= 3 {
+            &ALL[3 - A..]
+        } else {
+            self.axes()
+        }
+    }
+
+    /// `Some(A)` if the axes of length > 1 are exactly the last `A` axes.
+    #[inline(always)]
+    pub fn trailing(&self) -> Option<usize> {
+        let n = self.naxes;
+        (n > 0 && (0..n).all(|a| self.axes[a] == 3 - n + a)).then_some(n)
+    }
+
     /// Padded 3D index of linear index `i` (as [`Grid::unravel`], without a
     /// division instruction).
     ///
@@ -472,7 +495,7 @@ fn update_one<K: Fn(usize) -> bool, L: Labels + ?Sized>(
 /// Returns the new value of cell `i`, or `None` if no neighbour is known or
 /// the value would not be finite. Never returns NaN.
 #[inline(always)]
-pub(super) fn first_order(
+pub(super) fn first_order<const A: usize>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
@@ -483,7 +506,7 @@ pub(super) fn first_order(
     // (b_k, c_k², h_k, k) of the axes with a known neighbour, in axis order.
     let mut t = [(0.0f64, 0.0f64, 0.0f64, 0usize); 3];
     let mut n = 0;
-    for &k in st.axes() {
+    for &k in st.axes_as::<A>() {
         let s = st.strides[k];
         // `<` is false for NaN and +inf: unknown neighbours drop out.
         let mut a = f64::INFINITY;
@@ -871,6 +894,17 @@ mod tests {
                 assert_eq!(f.div(x), x / d, "{x} / {d}");
             }
         }
+    }
+
+    #[test]
+    fn trailing_axes() {
+        let t = |shape: &[usize]| Stencil::new(&Grid::unit(shape).unwrap()).trailing();
+        assert_eq!(t(&[4, 5]), Some(2));
+        assert_eq!(t(&[3, 4, 5]), Some(3));
+        assert_eq!(t(&[1, 5]), Some(1));
+        assert_eq!(t(&[5, 1, 9]), None);
+        assert_eq!(t(&[5, 1]), None);
+        assert_eq!(t(&[1, 1]), None);
     }
 
     #[test]
