@@ -171,32 +171,20 @@ pub(super) fn solve(
             None => m.run_first_order(cost, options, control)?,
         }
     } else {
-        let kernel = General::<false> {
-            st: &st,
-            cost,
-            second,
-            factor: factor.as_ref(),
-            multi,
-        };
-        if multi {
-            m.run(&kernel, options, control)?
-        } else {
-            // One source: every known cell has label 0, read from nowhere.
-            let General {
-                st,
-                cost,
-                second,
-                factor,
-                multi,
-            } = kernel;
-            let kernel = General::<true> {
-                st,
-                cost,
-                second,
-                factor,
-                multi,
-            };
-            m.run(&kernel, options, control)?
+        let factor = factor.as_ref();
+        match (multi, st.trailing()) {
+            (true, _) => {
+                m.run_general::<false, 0>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, Some(2)) => {
+                m.run_general::<true, 2>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, Some(3)) => {
+                m.run_general::<true, 3>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, _) => {
+                m.run_general::<true, 0>(&st, cost, second, factor, multi, options, control)?
+            }
         }
     };
     let March {
@@ -231,6 +219,29 @@ struct March<'a> {
 }
 
 impl March<'_> {
+    /// [`March::run`] with the general kernel; `ONE` for one source, `A`
+    /// for unrolled axis loops ([`Stencil::axes_as`]).
+    #[allow(clippy::too_many_arguments)]
+    fn run_general<const ONE: bool, const A: usize>(
+        &mut self,
+        st: &Stencil,
+        cost: &IsotropicCost<'_>,
+        second: bool,
+        factor: Option<&Factor>,
+        multi: bool,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let kernel = General::<ONE, A> {
+            st,
+            cost,
+            second,
+            factor,
+            multi,
+        };
+        self.run(&kernel, options, control)
+    }
+
     /// [`March::run`] with the first-order kernel, its axis loops unrolled
     /// for the usual 2D and 3D grids.
     fn run_first_order<C: CostAt>(
@@ -361,7 +372,7 @@ trait Kernel {
 /// The general update of [`super::update`]: either order, factoring,
 /// several sources; `ONE` when there is one source (labels are then not
 /// read nor written during the march).
-struct General<'a, const ONE: bool> {
+struct General<'a, const ONE: bool, const A: usize> {
     st: &'a Stencil,
     cost: &'a IsotropicCost<'a>,
     second: bool,
@@ -369,8 +380,13 @@ struct General<'a, const ONE: bool> {
     multi: bool,
 }
 
-impl<const ONE: bool> Kernel for General<'_, ONE> {
+impl<const ONE: bool, const A: usize> Kernel for General<'_, ONE, A> {
     const LABELS: bool = !ONE;
+
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes_as::<A>()
+    }
 
     #[inline]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
@@ -378,11 +394,11 @@ impl<const ONE: bool> Kernel for General<'_, ONE> {
         let known = |x: usize| u[x] < f64::INFINITY;
         let (second, factor, multi, cost) = (self.second, self.factor, self.multi, self.cost);
         if ONE {
-            update(
+            update::<A, _, _>(
                 self.st, j, jdx, w, u, &OneSource, known, second, factor, multi, cost,
             )
         } else {
-            update(
+            update::<A, _, _>(
                 self.st, j, jdx, w, u, labels, known, second, factor, multi, cost,
             )
         }

@@ -312,7 +312,7 @@ struct Term {
 /// or the value would not be finite. Never returns NaN.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub(super) fn update<K: Fn(usize) -> bool, L: Labels + ?Sized>(
+pub(super) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
@@ -329,7 +329,7 @@ pub(super) fn update<K: Fn(usize) -> bool, L: Labels + ?Sized>(
         // The distinct labels of the known axis neighbours.
         let mut ls = [0i32; 6];
         let mut nl = 0;
-        for &k in st.axes() {
+        for &k in st.axes_as::<A>() {
             let s = st.strides[k];
             let lo = (idx[k] > 0).then(|| i - s);
             let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
@@ -346,7 +346,7 @@ pub(super) fn update<K: Fn(usize) -> bool, L: Labels + ?Sized>(
             // quadratic would cut the corner at the Voronoi boundary.
             let mut best: Option<(f64, i32)> = None;
             for &l in &ls[..nl] {
-                let r = update_one(
+                let r = update_one::<A, _, _>(
                     st,
                     i,
                     idx,
@@ -367,13 +367,13 @@ pub(super) fn update<K: Fn(usize) -> bool, L: Labels + ?Sized>(
             return best;
         }
     }
-    update_one(st, i, idx, w, u, labels, known, second, factor, cost)
+    update_one::<A, _, _>(st, i, idx, w, u, labels, known, second, factor, cost)
 }
 
 /// [`update`] for neighbours that all carry one label (or when labels do not matter).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn update_one<K: Fn(usize) -> bool, L: Labels + ?Sized>(
+fn update_one<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
@@ -389,7 +389,7 @@ fn update_one<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     let mut n = 0;
     let mut missing = [0usize; 3];
     let mut nmissing = 0;
-    for &k in st.axes() {
+    for &k in st.axes_as::<A>() {
         let s = st.strides[k];
         let mut a1 = f64::INFINITY;
         let mut j1 = usize::MAX;
@@ -817,7 +817,7 @@ mod tests {
     fn run(grid: &Grid, u: &[f64], x: [usize; 3], w: f64, second: bool) -> Option<(f64, i32)> {
         let st = Stencil::new(grid);
         let labels: Vec<i32> = (0..u.len() as i32).collect();
-        update(
+        update::<0, _, _>(
             &st,
             grid.linear(x),
             x,
