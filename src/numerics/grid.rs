@@ -7,8 +7,10 @@
 //! Linear indices are in C (row-major) order, the order of `ndarray`'s
 //! standard layout and of NPY files.
 
-/// The largest number of cells a grid may have (linear indices fit in `u32`).
-pub const MAX_CELLS: usize = u32::MAX as usize - 1;
+/// The largest number of cells a grid may have: linear indices fit in `u32`,
+/// with the top 16 values left free for the per-cell tags of
+/// [`crate::numerics::heap`].
+pub const MAX_CELLS: usize = u32::MAX as usize - 16;
 
 /// Why a grid description was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

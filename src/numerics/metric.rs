@@ -209,6 +209,11 @@ impl<'a> IsotropicCost<'a> {
     pub fn is_uniform(&self) -> bool {
         matches!(self.values, CostValues::Constant(_)) && self.obstacles.is_none()
     }
+
+    /// The cost of every cell when it is uniform ([`IsotropicCost::is_uniform`]).
+    pub fn uniform_value(&self) -> Option<f64> {
+        self.is_uniform().then(|| self.at(0))
+    }
 }
 
 /// A linear index as the caller's (2D or 3D) array index.

@@ -16,7 +16,7 @@
 //! * [`grid`]: grid shape, per-axis spacing, linear indexing.
 //! * [`metric`]: isotropic cost `W(x)` (or speed `F = 1/W`) and obstacles.
 //! * [`control`]: cancellation and progress reporting.
-//! * [`heap`]: indexed binary min-heap with decrease-key (the narrow band).
+//! * [`heap`]: indexed 4-ary min-heap with decrease-key and per-cell tags (the narrow band).
 //! * [`eikonal`]: the eikonal solvers (fast marching, fast sweeping, Dijkstra).
 //! * [`exact`]: closed-form geodesic distances used as test oracles and in benchmarks.
 

@@ -1,9 +1,9 @@
 //! Fast marching (Sethian 1996; Tsitsiklis 1995) for `|∇U| = W` on 2D/3D grids.
 //!
 //! Every cell is `Far`, `Trial` (in the narrow band, an [`IndexedHeap`]) or
-//! `Frozen`. The seed cells of the [`InitialFront`] enter the band with their
-//! prescribed values, which are Dirichlet data: they are never recomputed.
-//! The band cell of smallest value is frozen, and each of its non-frozen,
+//! `Frozen`. The seed cells of the [`InitialFront`] wait in a queue sorted by
+//! their prescribed values, which are Dirichlet data: they are never
+//! recomputed. The smallest of the band and of the seed queue is frozen, and each of its non-frozen,
 //! non-wall axis neighbours is recomputed from its frozen neighbours with the
 //! upwind update of [`super::update`] (the latest recomputation replaces the
 //! band value: for the second-order scheme, which uses more information as
@@ -33,26 +33,74 @@
 //! 65536 frozen cells and at the end.
 //!
 //! Memory beyond the input cost and the output `U` (`f64`) and labels
-//! (`i32`): 1 byte of state and 4 bytes of heap position per cell, plus 16
-//! bytes per band cell (at most 21 bytes per cell); 1 byte per cell more when
-//! targets are given and 8 when the freezing order is recorded (an output).
+//! (`i32`): nothing per cell for the state, which lives in the NaNs of `U`
+//! while the march runs (see `Cells`), and 16 bytes per band or seed cell
+//! (at most 16 bytes per cell); 1 byte per cell more when targets are given
+//! and 8 when the freezing order is recorded (an output).
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{update, Factor, Stencil};
+use super::update::{first_order, one_axis_root, update, Factor, OneSource, Stencil};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
 };
 use crate::numerics::control::Control;
-use crate::numerics::heap::IndexedHeap;
+use crate::numerics::heap::{IndexedHeap, Positions, ABSENT, FIRST_TAG};
+use crate::numerics::metric::IsotropicCost;
 
-const FAR: u8 = 0;
-const TRIAL: u8 = 1;
-const FROZEN: u8 = 2;
-const WALL: u8 = 3;
-/// In the band with a prescribed (Dirichlet) value: never recomputed.
-const SEED: u8 = 4;
+// Cell states, kept with `U` in [`Cells`] (a slot `< FIRST_TAG` means
+// Trial, i.e. in the band).
+/// Not reached yet.
+const FAR: u32 = ABSENT;
+/// Final value (the cell holds its finite `U`).
+const FROZEN: u32 = FIRST_TAG;
+/// Never entered.
+const WALL: u32 = FIRST_TAG + 1;
+/// Waiting in the seed queue with a prescribed (Dirichlet) value: never recomputed.
+const SEED: u32 = FIRST_TAG + 2;
+
+/// True for the states whose value an update may (re)compute: Far and Trial.
+#[inline]
+fn open(state: u32) -> bool {
+    state < FIRST_TAG || state == FAR
+}
+
+/// `U` and the state of every cell in one `f64`: a frozen cell holds its
+/// (finite) value; any other cell holds a NaN whose low 32 bits are its heap
+/// slot or tag. One array instead of two halves the cache lines and pages
+/// touched per neighbour (3D grids are memory bound), and "known" is
+/// `u < +inf`, which is false for every NaN.
+struct Cells(Vec<f64>);
+
+/// The high bits of a boxed slot or tag: a quiet NaN that arithmetic never
+/// produces here (values are never NaN).
+const BOX: u64 = 0x7ffc_0000_0000_0000;
+
+impl Cells {
+    fn new(n: usize) -> Self {
+        Self(vec![f64::from_bits(BOX | u64::from(FAR)); n])
+    }
+}
+
+impl Positions for Cells {
+    #[inline(always)]
+    fn get(&self, id: u32) -> u32 {
+        let b = self.0[id as usize].to_bits();
+        if b >> 32 == BOX >> 32 {
+            b as u32
+        } else {
+            FROZEN
+        }
+    }
+    #[inline(always)]
+    fn set(&mut self, id: u32, p: u32) {
+        self.0[id as usize] = f64::from_bits(BOX | u64::from(p));
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+}
 
 const CANCEL_EVERY: usize = 4096;
 const PROGRESS_EVERY: usize = 65536;
@@ -76,122 +124,374 @@ pub(super) fn solve(
         None
     };
 
-    let mut u = vec![f64::INFINITY; n];
-    let mut labels = vec![-1i32; n];
-    let mut state = vec![FAR; n];
+    let mut m = March {
+        st: &st,
+        labels: vec![-1i32; n],
+        heap: IndexedHeap::with_positions(Cells::new(n)),
+        seeds: Vec::with_capacity(front.cells.len()),
+        is_target: Vec::new(),
+        targets_left: 0,
+        order: options.record_order.then(|| vec![-1i64; n]),
+    };
     if !cost.is_uniform() {
-        for (i, s) in state.iter_mut().enumerate() {
+        for i in 0..n {
             if cost.is_wall(i) {
-                *s = WALL;
+                m.heap.tag(i as u32, WALL);
             }
         }
     }
-
-    let mut is_target: Vec<bool> = Vec::new();
-    let mut targets_left = 0usize;
     if !options.stop.targets.is_empty() {
-        is_target = vec![false; n];
+        m.is_target = vec![false; n];
         for t in target_cells(grid, &options.stop.targets)? {
-            if !is_target[t] {
-                is_target[t] = true;
-                targets_left += 1;
+            if !m.is_target[t] {
+                m.is_target[t] = true;
+                m.targets_left += 1;
             }
         }
     }
-
-    let mut heap = IndexedHeap::new(n);
+    // The seeds are frozen in increasing value, interleaved with the band:
+    // a sorted queue beside the heap (ties go to the seed).
     for c in &front.cells {
-        u[c.index] = c.value;
-        labels[c.index] = c.label;
-        state[c.index] = SEED;
-        heap.push(c.index as u32, c.value);
+        m.labels[c.index] = c.label;
+        m.heap.tag(c.index as u32, SEED);
+        m.seeds.push((c.value, c.index as u32));
     }
-    let mut order = options.record_order.then(|| vec![-1i64; n]);
+    m.seeds
+        .sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
 
-    let mut frozen = 0usize;
-    let stop = loop {
-        if frozen.is_multiple_of(CANCEL_EVERY) && control.is_cancelled() {
-            return Err(EikonalError::Cancelled);
-        }
-        if frozen.is_multiple_of(PROGRESS_EVERY) && frozen > 0 {
-            control.report(frozen as f64 / n as f64);
-        }
-        let Some((id, key)) = heap.peek() else {
-            break StopReason::Completed;
-        };
-        if options.stop.max_distance.is_some_and(|d| key > d) {
-            break StopReason::MaxDistance;
-        }
-        if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
-            break StopReason::MaxFrozen;
-        }
-        heap.pop();
-        let i = id as usize;
-        state[i] = FROZEN;
-        if let Some(o) = order.as_mut() {
-            o[i] = frozen as i64;
-        }
-        frozen += 1;
-        if targets_left > 0 && is_target[i] {
-            targets_left -= 1;
-            if targets_left == 0 {
-                break StopReason::TargetsReached;
+    // The first-order unfactored scheme with one source (labels are all 0)
+    // has a kernel of its own, monomorphised on the kind of cost.
+    let (stop, frozen) = if !second && factor.is_none() && !multi {
+        match cost.uniform_value() {
+            Some(w) => {
+                let one = [0, 1, 2].map(|k| one_axis_root(&st, k, w));
+                let cost = Uniform { w, one };
+                m.run_first_order(cost, options, control)?
             }
+            None => m.run_first_order(cost, options, control)?,
         }
-
-        let idx = grid.unravel(i);
-        for &k in st.axes() {
-            let s = st.strides[k];
-            for up in [false, true] {
-                let (j, jk) = if up {
-                    if idx[k] + 1 >= st.shape[k] {
-                        continue;
-                    }
-                    (i + s, idx[k] + 1)
-                } else {
-                    if idx[k] == 0 {
-                        continue;
-                    }
-                    (i - s, idx[k] - 1)
-                };
-                let sj = state[j];
-                if sj != FAR && sj != TRIAL {
-                    continue;
-                }
-                let mut jdx = idx;
-                jdx[k] = jk;
-                let w = cost.at(j);
-                let known = |x: usize| state[x] == FROZEN;
-                if let Some((v, l)) = update(
-                    &st,
-                    j,
-                    jdx,
-                    w,
-                    &u,
-                    &labels,
-                    known,
-                    second,
-                    factor.as_ref(),
-                    multi,
-                    cost,
-                ) {
-                    u[j] = v;
-                    labels[j] = l;
-                    state[j] = TRIAL;
-                    heap.set_key(j as u32, v);
-                }
+    } else {
+        let factor = factor.as_ref();
+        match (multi, st.trailing()) {
+            (true, _) => {
+                m.run_general::<false, 0>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, Some(2)) => {
+                m.run_general::<true, 2>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, Some(3)) => {
+                m.run_general::<true, 3>(&st, cost, second, factor, multi, options, control)?
+            }
+            (false, _) => {
+                m.run_general::<true, 0>(&st, cost, second, factor, multi, options, control)?
             }
         }
     };
-
-    if stop != StopReason::Completed {
-        for ((s, v), l) in state.iter().zip(u.iter_mut()).zip(labels.iter_mut()) {
-            if *s != FROZEN {
-                *v = f64::INFINITY;
-                *l = -1;
-            }
+    let March {
+        mut labels,
+        heap,
+        order,
+        ..
+    } = m;
+    // Every cell not frozen (early stop, unreachable, wall) gets +inf and -1.
+    let mut u = heap.into_positions().0;
+    for (v, l) in u.iter_mut().zip(labels.iter_mut()) {
+        if v.is_nan() {
+            *v = f64::INFINITY;
+            *l = -1;
         }
     }
     control.report(1.0);
     Ok(finish(grid, u, labels, order, frozen, stop, None))
+}
+
+/// The working state of a solve.
+struct March<'a> {
+    st: &'a Stencil,
+    labels: Vec<i32>,
+    /// The band; its position storage holds `U` and every cell's state.
+    heap: IndexedHeap<Cells>,
+    /// Seed cells `(value, index)` sorted by value; the first `next_seed` are frozen.
+    seeds: Vec<(f64, u32)>,
+    is_target: Vec<bool>,
+    targets_left: usize,
+    order: Option<Vec<i64>>,
+}
+
+impl March<'_> {
+    /// [`March::run`] with the general kernel; `ONE` for one source, `A`
+    /// for unrolled axis loops ([`Stencil::axes_as`]).
+    #[allow(clippy::too_many_arguments)]
+    fn run_general<const ONE: bool, const A: usize>(
+        &mut self,
+        st: &Stencil,
+        cost: &IsotropicCost<'_>,
+        second: bool,
+        factor: Option<&Factor>,
+        multi: bool,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let kernel = General::<ONE, A> {
+            st,
+            cost,
+            second,
+            factor,
+            multi,
+        };
+        self.run(&kernel, options, control)
+    }
+
+    /// [`March::run`] with the first-order kernel, its axis loops unrolled
+    /// for the usual 2D and 3D grids.
+    fn run_first_order<C: CostAt>(
+        &mut self,
+        cost: C,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let st = self.st;
+        match st.trailing() {
+            Some(2) => self.run(&FirstOrder::<C, 2> { st, cost }, options, control),
+            Some(3) => self.run(&FirstOrder::<C, 3> { st, cost }, options, control),
+            _ => self.run(&FirstOrder::<C, 0> { st, cost }, options, control),
+        }
+    }
+
+    /// Freezes cells until the band is empty or a stop rule fires; returns
+    /// the reason and the number of frozen cells.
+    fn run<K: Kernel>(
+        &mut self,
+        kernel: &K,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let n = self.labels.len();
+        let st = self.st;
+        let mut next_seed = 0usize;
+        let mut frozen = 0usize;
+        let stop = loop {
+            if frozen.is_multiple_of(CANCEL_EVERY) && control.is_cancelled() {
+                return Err(EikonalError::Cancelled);
+            }
+            if frozen.is_multiple_of(PROGRESS_EVERY) && frozen > 0 {
+                control.report(frozen as f64 / n as f64);
+            }
+            let seed = self.seeds.get(next_seed).copied();
+            let (id, key, from_seed) = match (self.heap.peek(), seed) {
+                (Some((hid, hk)), Some((sk, sid))) => {
+                    if sk <= hk {
+                        (sid, sk, true)
+                    } else {
+                        (hid, hk, false)
+                    }
+                }
+                (Some((hid, hk)), None) => (hid, hk, false),
+                (None, Some((sk, sid))) => (sid, sk, true),
+                (None, None) => break StopReason::Completed,
+            };
+            if options.stop.max_distance.is_some_and(|d| key > d) {
+                break StopReason::MaxDistance;
+            }
+            if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
+                break StopReason::MaxFrozen;
+            }
+            if from_seed {
+                next_seed += 1;
+            } else {
+                self.heap.pop();
+            }
+            let i = id as usize;
+            self.heap.positions_mut().0[i] = key;
+            if let Some(o) = self.order.as_mut() {
+                o[i] = frozen as i64;
+            }
+            frozen += 1;
+            if self.targets_left > 0 && self.is_target[i] {
+                self.targets_left -= 1;
+                if self.targets_left == 0 {
+                    break StopReason::TargetsReached;
+                }
+            }
+
+            let idx = st.unravel(i);
+            for &k in kernel.axes(st) {
+                let s = st.strides[k];
+                if idx[k] > 0 {
+                    self.visit(kernel, i - s, idx, k, idx[k] - 1);
+                }
+                if idx[k] + 1 < st.shape[k] {
+                    self.visit(kernel, i + s, idx, k, idx[k] + 1);
+                }
+            }
+        };
+        if !K::LABELS {
+            // One source: every reached cell has label 0.
+            let u = &self.heap.positions().0;
+            for (l, v) in self.labels.iter_mut().zip(u) {
+                *l = if *v < f64::INFINITY { 0 } else { -1 };
+            }
+        }
+        Ok((stop, frozen))
+    }
+
+    /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
+    #[inline(always)]
+    fn visit<K: Kernel>(&mut self, kernel: &K, j: usize, idx: [usize; 3], k: usize, jk: usize) {
+        if !open(self.heap.state(j as u32)) {
+            return;
+        }
+        let mut jdx = idx;
+        jdx[k] = jk;
+        if let Some((v, l)) = kernel.value(j, jdx, &self.heap.positions().0, &self.labels) {
+            if K::LABELS {
+                self.labels[j] = l;
+            }
+            self.heap.set_key(j as u32, v);
+        }
+    }
+}
+
+/// How a band value is computed from the frozen neighbours.
+trait Kernel {
+    /// Whether the kernel gives labels; if not (one source) every reached
+    /// cell gets label 0 at the end.
+    const LABELS: bool;
+
+    /// The axes of length > 1 ([`Stencil::axes`] or a constant equivalent).
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes()
+    }
+
+    /// The new value and label of cell `j` (padded index `jdx`), or `None`;
+    /// `u` is finite exactly on the frozen cells (NaN or `+inf` elsewhere).
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)>;
+}
+
+/// The general update of [`super::update`]: either order, factoring,
+/// several sources; `ONE` when there is one source (labels are then not
+/// read nor written during the march).
+struct General<'a, const ONE: bool, const A: usize> {
+    st: &'a Stencil,
+    cost: &'a IsotropicCost<'a>,
+    second: bool,
+    factor: Option<&'a Factor>,
+    multi: bool,
+}
+
+impl<const ONE: bool, const A: usize> Kernel for General<'_, ONE, A> {
+    const LABELS: bool = !ONE;
+
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes_as::<A>()
+    }
+
+    #[inline]
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
+        let w = self.cost.at(j);
+        let known = |x: usize| u[x] < f64::INFINITY;
+        let (second, factor, multi, cost) = (self.second, self.factor, self.multi, self.cost);
+        if ONE {
+            update::<A, _, _>(
+                self.st, j, jdx, w, u, &OneSource, known, second, factor, multi, cost,
+            )
+        } else {
+            update::<A, _, _>(
+                self.st, j, jdx, w, u, labels, known, second, factor, multi, cost,
+            )
+        }
+    }
+}
+
+/// A cost lookup, monomorphised: a constant or the general field.
+trait CostAt {
+    fn at(&self, i: usize) -> f64;
+    /// [`one_axis_root`] of axis `k` at a cell of cost `w`.
+    fn one_axis(&self, st: &Stencil, k: usize, w: f64) -> f64;
+}
+
+/// A uniform cost, with its one-axis roots precomputed per axis.
+struct Uniform {
+    w: f64,
+    one: [f64; 3],
+}
+
+impl CostAt for Uniform {
+    #[inline(always)]
+    fn at(&self, _: usize) -> f64 {
+        self.w
+    }
+    #[inline(always)]
+    fn one_axis(&self, _: &Stencil, k: usize, _: f64) -> f64 {
+        self.one[k]
+    }
+}
+
+impl CostAt for &IsotropicCost<'_> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> f64 {
+        IsotropicCost::at(self, i)
+    }
+    #[inline(always)]
+    fn one_axis(&self, st: &Stencil, k: usize, w: f64) -> f64 {
+        one_axis_root(st, k, w)
+    }
+}
+
+/// The first-order unfactored update for one source ([`first_order`]);
+/// `A > 0` when the axes are the last `A` ones ([`Stencil::axes_as`]).
+struct FirstOrder<'a, C, const A: usize> {
+    st: &'a Stencil,
+    cost: C,
+}
+
+impl<C: CostAt, const A: usize> Kernel for FirstOrder<'_, C, A> {
+    const LABELS: bool = false;
+
+    #[inline(always)]
+    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
+        st.axes_as::<A>()
+    }
+
+    #[inline(always)]
+    fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
+        let w = self.cost.at(j);
+        let one = |k| self.cost.one_axis(self.st, k, w);
+        first_order::<A>(self.st, j, jdx, w, u, one).map(|v| (v, 0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{solve, EikonalOptions, Order, Source};
+    use crate::numerics::{Control, EikonalProblem, Grid, IsotropicCost};
+
+    fn first_order_unit(shape: &[usize], p: Vec<f64>) -> Vec<f64> {
+        let problem = EikonalProblem {
+            grid: Grid::unit(shape).unwrap(),
+            cost: IsotropicCost::constant(1.0).unwrap(),
+            sources: vec![Source::Point(p)],
+        };
+        let o = EikonalOptions::DEFAULT
+            .with_order(Order::First)
+            .with_factoring(false);
+        let out = solve(&problem, &o, &Control::new()).unwrap();
+        out.distance.iter().copied().collect()
+    }
+
+    #[test]
+    fn unrolled_and_generic_axis_loops_agree() {
+        // (6, 7) runs the kernel unrolled for the last two axes; (6, 1, 7)
+        // has the same cells but its axes are 0 and 2 (generic loop).
+        let a = first_order_unit(&[6, 7], vec![2.3, 4.1]);
+        let b = first_order_unit(&[6, 1, 7], vec![2.3, 0.0, 4.1]);
+        assert_eq!(a, b);
+        // One axis: exact U = |x − p| beyond the seeds.
+        let c = first_order_unit(&[1, 9], vec![0.0, 2.0]);
+        for (x, u) in c.iter().enumerate() {
+            assert_eq!(*u, (x as f64 - 2.0).abs());
+        }
+    }
 }

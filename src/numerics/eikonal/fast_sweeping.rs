@@ -231,7 +231,7 @@ impl Sweep<'_> {
                     }
                     let w = self.cost.at(i);
                     let known = |j: usize| u[j] < f64::INFINITY;
-                    let Some((v, l)) = update(
+                    let Some((v, l)) = update::<0, _, _>(
                         self.st,
                         i,
                         [a, b, c],

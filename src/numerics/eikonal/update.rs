@@ -74,6 +74,8 @@ pub(super) struct Stencil {
     /// Axes of length > 1.
     axes: [usize; 3],
     naxes: usize,
+    /// Division by `strides[0]` and `strides[1]` (for [`Stencil::unravel`]).
+    div: [FastDiv; 2],
 }
 
 impl Stencil {
@@ -97,6 +99,10 @@ impl Stencil {
             inv_h2_second: h.map(|h| 2.25 / (h * h)),
             axes,
             naxes,
+            div: [
+                FastDiv::new(grid.strides3()[0]),
+                FastDiv::new(grid.strides3()[1]),
+            ],
         }
     }
 
@@ -104,6 +110,103 @@ impl Stencil {
     #[inline]
     pub fn axes(&self) -> &[usize] {
         &self.axes[..self.naxes]
+    }
+
+    /// The axes of length > 1, as a constant list when `A > 0`: the last
+    /// `A` padded axes, which the caller must have checked with
+    /// [`Stencil::trailing`] (a 2D grid `(1, n0, n1)`, a 3D grid), so that
+    /// loops over it unroll with constant axis numbers. [`Stencil::axes`]
+    /// for `A = 0`.
+    #[inline(always)]
+    pub fn axes_as<const A: usize>(&self) -> &[usize] {
+        const ALL: [usize; 3] = [0, 1, 2];
+        debug_assert!(A == 0 || self.trailing() == Some(A));
+        if A > 0 && A <= 3 {
+            &ALL[3 - A..]
+        } else {
+            self.axes()
+        }
+    }
+
+    /// `Some(A)` if the axes of length > 1 are exactly the last `A` axes.
+    #[inline(always)]
+    pub fn trailing(&self) -> Option<usize> {
+        let n = self.naxes;
+        (n > 0 && (0..n).all(|a| self.axes[a] == 3 - n + a)).then_some(n)
+    }
+
+    /// Padded 3D index of linear index `i` (as [`Grid::unravel`], without a
+    /// division instruction).
+    ///
+    /// [`Grid::unravel`]: crate::numerics::grid::Grid::unravel
+    #[inline]
+    pub fn unravel(&self, i: usize) -> [usize; 3] {
+        let a = self.div[0].div(i);
+        let r = i - a * self.strides[0];
+        let b = self.div[1].div(r);
+        [a, b, r - b * self.strides[1]]
+    }
+}
+
+/// Division of a linear index (`< 2^32`, see [`MAX_CELLS`]) by a fixed
+/// divisor `d < 2^32` as a multiplication: `x / d = ⌊M x / 2^64⌋` with
+/// `M = ⌈2^64 / d⌉`, exact for every 32-bit `x` and `d` (Lemire, Kaser and
+/// Kurz 2019, "Faster remainder by direct computation", theorem 1 with
+/// `F = 64 ≥ N + log2 d`).
+///
+/// [`MAX_CELLS`]: crate::numerics::grid::MAX_CELLS
+#[derive(Debug, Clone, Copy)]
+struct FastDiv {
+    d: usize,
+    /// `⌈2^64 / d⌉`, or 0 when `d = 1` (no multiplication then).
+    m: u64,
+}
+
+impl FastDiv {
+    fn new(d: usize) -> Self {
+        let d = d.max(1);
+        let m = if d == 1 {
+            0
+        } else {
+            // ⌈2^64 / d⌉ = ⌊(2^64 − 1) / d⌋ + 1 for every d ≥ 2 (whether or
+            // not d divides 2^64), and it fits: it is at most 2^63.
+            u64::MAX / d as u64 + 1
+        };
+        Self { d, m }
+    }
+
+    #[inline]
+    fn div(&self, x: usize) -> usize {
+        if self.d == 1 {
+            x
+        } else {
+            debug_assert!(x <= u32::MAX as usize);
+            ((u128::from(self.m) * x as u128) >> 64) as usize
+        }
+    }
+}
+
+/// Where the update reads the labels of known cells: the label array, or
+/// nothing at all when there is one source (every known cell has label 0).
+pub(super) trait Labels {
+    /// The label of known cell `j`.
+    fn at(&self, j: usize) -> i32;
+}
+
+impl Labels for [i32] {
+    #[inline(always)]
+    fn at(&self, j: usize) -> i32 {
+        self[j]
+    }
+}
+
+/// The labels of a solve with one source: 0 for every known cell.
+pub(super) struct OneSource;
+
+impl Labels for OneSource {
+    #[inline(always)]
+    fn at(&self, _: usize) -> i32 {
+        0
     }
 }
 
@@ -209,13 +312,13 @@ struct Term {
 /// or the value would not be finite. Never returns NaN.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub(super) fn update<K: Fn(usize) -> bool>(
+pub(super) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
     w: f64,
     u: &[f64],
-    labels: &[i32],
+    labels: &L,
     known: K,
     second: bool,
     factor: Option<&Factor>,
@@ -226,13 +329,13 @@ pub(super) fn update<K: Fn(usize) -> bool>(
         // The distinct labels of the known axis neighbours.
         let mut ls = [0i32; 6];
         let mut nl = 0;
-        for &k in st.axes() {
+        for &k in st.axes_as::<A>() {
             let s = st.strides[k];
             let lo = (idx[k] > 0).then(|| i - s);
             let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
             for j in [lo, hi].into_iter().flatten() {
-                if known(j) && !ls[..nl].contains(&labels[j]) {
-                    ls[nl] = labels[j];
+                if known(j) && !ls[..nl].contains(&labels.at(j)) {
+                    ls[nl] = labels.at(j);
                     nl += 1;
                 }
             }
@@ -243,14 +346,14 @@ pub(super) fn update<K: Fn(usize) -> bool>(
             // quadratic would cut the corner at the Voronoi boundary.
             let mut best: Option<(f64, i32)> = None;
             for &l in &ls[..nl] {
-                let r = update_one(
+                let r = update_one::<A, _, _>(
                     st,
                     i,
                     idx,
                     w,
                     u,
                     labels,
-                    |j| labels[j] == l && known(j),
+                    |j| labels.at(j) == l && known(j),
                     second,
                     factor,
                     cost,
@@ -264,19 +367,19 @@ pub(super) fn update<K: Fn(usize) -> bool>(
             return best;
         }
     }
-    update_one(st, i, idx, w, u, labels, known, second, factor, cost)
+    update_one::<A, _, _>(st, i, idx, w, u, labels, known, second, factor, cost)
 }
 
 /// [`update`] for neighbours that all carry one label (or when labels do not matter).
 #[allow(clippy::too_many_arguments)]
-#[inline]
-fn update_one<K: Fn(usize) -> bool>(
+#[inline(always)]
+fn update_one<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],
     w: f64,
     u: &[f64],
-    labels: &[i32],
+    labels: &L,
     known: K,
     second: bool,
     factor: Option<&Factor>,
@@ -286,7 +389,7 @@ fn update_one<K: Fn(usize) -> bool>(
     let mut n = 0;
     let mut missing = [0usize; 3];
     let mut nmissing = 0;
-    for &k in st.axes() {
+    for &k in st.axes_as::<A>() {
         let s = st.strides[k];
         let mut a1 = f64::INFINITY;
         let mut j1 = usize::MAX;
@@ -378,7 +481,121 @@ fn update_one<K: Fn(usize) -> bool>(
         .iter()
         .map(|a| (a.a1 + w * st.h[a.k], a.j1))
         .min_by(|x, y| x.0.total_cmp(&y.0))?;
-    v.is_finite().then(|| (v, labels[j]))
+    v.is_finite().then(|| (v, labels.at(j)))
+}
+
+/// [`update`] for the first-order unfactored scheme when labels do not
+/// matter (one source): the same value with the same arithmetic, without the
+/// bookkeeping of the general update (no labels, no second neighbours, no
+/// per-axis records).
+///
+/// A neighbour is known exactly when its value in `u` is finite (`u` may
+/// hold NaN or `+inf` on the others).
+///
+/// Returns the new value of cell `i`, or `None` if no neighbour is known or
+/// the value would not be finite. Never returns NaN.
+#[inline(always)]
+pub(super) fn first_order<const A: usize>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    one_axis: impl Fn(usize) -> f64,
+) -> Option<f64> {
+    // (b_k, c_k², h_k, k) of the axes with a known neighbour, in axis order.
+    let mut t = [(0.0f64, 0.0f64, 0.0f64, 0usize); 3];
+    let mut n = 0;
+    for &k in st.axes_as::<A>() {
+        let s = st.strides[k];
+        // `<` is false for NaN and +inf: unknown neighbours drop out.
+        let mut a = f64::INFINITY;
+        if idx[k] > 0 && u[i - s] < a {
+            a = u[i - s];
+        }
+        if idx[k] + 1 < st.shape[k] && u[i + s] < a {
+            a = u[i + s];
+        }
+        if a < f64::INFINITY {
+            t[n] = (a, st.inv_h2[k], st.h[k], k);
+            n += 1;
+        }
+    }
+    let t = &mut t[..n];
+    // Stable insertion sort by b (as `solve_terms`).
+    for a in 1..t.len() {
+        let mut b = a;
+        while b > 0 && t[b].0 < t[b - 1].0 {
+            t.swap(b, b - 1);
+            b -= 1;
+        }
+    }
+    let b0 = t.first()?.0;
+    let w2 = w * w;
+    // The root with the first term alone, `√(c² W²) / c²` (what
+    // `solve_terms` computes at its first step).
+    let r0 = one_axis(t[0].3);
+    let root = if let [_, (b1, c1, _, _)] = *t {
+        // Two terms: the two-term root is computed alongside `r0` (two
+        // independent chains), then the causal one is kept.
+        let d = b1 - b0;
+        let sa = t[0].1 + c1;
+        let sb = c1 * d;
+        let sc = c1 * d * d;
+        let disc = sb * sb - sa * (sc - w2);
+        let v2 = (sb + disc.sqrt()) / sa;
+        if r0 <= d {
+            Some(r0)
+        } else if disc.is_nan() || disc < 0.0 {
+            None
+        } else {
+            Some(v2)
+        }
+    } else {
+        let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
+        let mut root = None;
+        for m in 0..t.len() {
+            let (b, c2, _, _) = t[m];
+            let d = b - b0;
+            sa += c2;
+            sb += c2 * d;
+            sc += c2 * d * d;
+            let v = if m == 0 {
+                r0
+            } else {
+                let disc = sb * sb - sa * (sc - w2);
+                if disc.is_nan() || disc < 0.0 {
+                    break;
+                }
+                (sb + disc.sqrt()) / sa
+            };
+            if m + 1 == t.len() || v <= t[m + 1].0 - b0 {
+                root = Some(v);
+                break;
+            }
+        }
+        root
+    };
+    if let Some(v) = root {
+        let v = b0 + v;
+        if v.is_finite() && v >= b0 {
+            return Some(v);
+        }
+    }
+    // Only reached through overflow or rounding: the one-axis update.
+    let v = t
+        .iter()
+        .map(|&(a, _, h, _)| a + w * h)
+        .min_by(|x, y| x.total_cmp(y))?;
+    v.is_finite().then_some(v)
+}
+
+/// The first-order root with one axis, `√(c_k² W²) / c_k²` with
+/// `c_k² = 1/h_k²` (as [`first_order`] and `solve_terms` compute it).
+#[inline(always)]
+pub(super) fn one_axis_root(st: &Stencil, k: usize, w: f64) -> f64 {
+    let c2 = st.inv_h2[k];
+    (c2 * (w * w)).sqrt() / c2
 }
 
 /// Caps a second-order or factored value at the cost of one straight step
@@ -386,14 +603,14 @@ fn update_one<K: Fn(usize) -> bool>(
 /// larger end cost bounds the step's true cost to `O(h³)`). First-order
 /// unfactored values satisfy it already; the others can overshoot it where
 /// the cost is rough, which would break `U(x) ≤ U(y) + max W |x − y|`.
-#[inline]
-fn cap(
+#[inline(always)]
+fn cap<L: Labels + ?Sized>(
     st: &Stencil,
     ax: &[Axis],
     w: f64,
     cost: &IsotropicCost<'_>,
     r: (f64, i32),
-    labels: &[i32],
+    labels: &L,
 ) -> (f64, i32) {
     let mut best = r;
     for a in ax {
@@ -401,14 +618,14 @@ fn cap(
         if a.a1 + w * h < best.0 {
             let bound = a.a1 + h * w.max(cost.at(a.j1));
             if bound < best.0 {
-                best = (bound, labels[a.j1]);
+                best = (bound, labels.at(a.j1));
             }
         }
     }
     best
 }
 
-#[inline]
+#[inline(always)]
 fn first_term(st: &Stencil, a: &Axis) -> Term {
     Term {
         b: a.a1,
@@ -419,30 +636,30 @@ fn first_term(st: &Stencil, a: &Axis) -> Term {
 }
 
 /// The label of the active term with the smallest upwind value.
-#[inline]
-fn label_of(t: &[Term], labels: &[i32]) -> i32 {
+#[inline(always)]
+fn label_of<L: Labels + ?Sized>(t: &[Term], labels: &L) -> i32 {
     let mut best = &t[0];
     for x in &t[1..] {
         if x.a1 < best.a1 {
             best = x;
         }
     }
-    labels[best.j1]
+    labels.at(best.j1)
 }
 
 /// The factored update (see the module documentation), or `None` to fall back.
-#[inline]
-fn factored<K: Fn(usize) -> bool>(
+#[inline(always)]
+fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     idx: [usize; 3],
     w2: f64,
     ax: &[Axis],
     strip: &Strip<'_, K>,
-    labels: &[i32],
+    labels: &L,
     f: &Factor,
 ) -> Option<(f64, i32)> {
-    let label = labels[ax[0].j1];
-    if ax[1..].iter().any(|a| labels[a.j1] != label) {
+    let label = labels.at(ax[0].j1);
+    if ax[1..].iter().any(|a| labels.at(a.j1) != label) {
         return None;
     }
     let FactorPoint { p, w: wp } = f.point(label)?;
@@ -518,7 +735,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
     /// `R` the rays' radius of curvature).
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn dv(
+    fn dv<L: Labels + ?Sized>(
         &self,
         st: &Stencil,
         idx: [usize; 3],
@@ -527,7 +744,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
         d: [f64; 3],
         wp: f64,
         label: i32,
-        labels: &[i32],
+        labels: &L,
     ) -> f64 {
         let Some(a) = ax.iter().min_by(|a, b| a.a1.total_cmp(&b.a1)) else {
             return 0.0;
@@ -538,7 +755,11 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
         let s = st.strides[k];
         let y = a.j1;
         let (lo, hi) = (y - s, y + s);
-        if !((self.known)(lo) && (self.known)(hi) && labels[lo] == label && labels[hi] == label) {
+        if !((self.known)(lo)
+            && (self.known)(hi)
+            && labels.at(lo) == label
+            && labels.at(hi) == label)
+        {
             return 0.0;
         }
         // x − p of y, then of y ∓ e_k (physical).
@@ -558,7 +779,7 @@ impl<K: Fn(usize) -> bool> Strip<'_, K> {
 
 /// Solves `Σ c2_k ((U − b_k)⁺)² = rhs` (`rhs > 0`): sorts the terms by `b`
 /// and returns the root and the number of active (leading) terms.
-#[inline]
+#[inline(always)]
 fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, usize)> {
     // Insertion sort of at most 3 terms.
     for a in 1..t.len() {
@@ -596,13 +817,13 @@ mod tests {
     fn run(grid: &Grid, u: &[f64], x: [usize; 3], w: f64, second: bool) -> Option<(f64, i32)> {
         let st = Stencil::new(grid);
         let labels: Vec<i32> = (0..u.len() as i32).collect();
-        update(
+        update::<0, _, _>(
             &st,
             grid.linear(x),
             x,
             w,
             u,
-            &labels,
+            labels.as_slice(),
             |j| u[j].is_finite(),
             second,
             None,
@@ -655,6 +876,35 @@ mod tests {
         let u = vec![f64::INFINITY, 2.0, f64::INFINITY, f64::INFINITY, 7.0];
         let (v, _) = run(&g, &u, [0, 0, 2], 2.0, true).unwrap();
         assert_eq!(v, 4.0);
+    }
+
+    #[test]
+    fn fast_unravel_matches_the_grid() {
+        for shape in [[1usize, 7, 13], [5, 1, 9], [3, 4, 1], [2, 65537, 3]] {
+            let g = Grid::unit(&shape).unwrap();
+            let st = Stencil::new(&g);
+            for i in (0..g.len()).step_by(7).chain([g.len() - 1]) {
+                assert_eq!(st.unravel(i), g.unravel(i), "{shape:?} {i}");
+            }
+        }
+        // Largest numerators and awkward divisors, against plain division.
+        for d in [2usize, 3, 7, 1000, 65_535, 65_536, 65_537, 4_000_000_007] {
+            let f = FastDiv::new(d);
+            for x in [0usize, 1, d - 1, d, d + 1, 4_294_967_279, u32::MAX as usize] {
+                assert_eq!(f.div(x), x / d, "{x} / {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn trailing_axes() {
+        let t = |shape: &[usize]| Stencil::new(&Grid::unit(shape).unwrap()).trailing();
+        assert_eq!(t(&[4, 5]), Some(2));
+        assert_eq!(t(&[3, 4, 5]), Some(3));
+        assert_eq!(t(&[1, 5]), Some(1));
+        assert_eq!(t(&[5, 1, 9]), None);
+        assert_eq!(t(&[5, 1]), None);
+        assert_eq!(t(&[1, 1]), None);
     }
 
     #[test]
