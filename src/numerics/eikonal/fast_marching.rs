@@ -126,7 +126,9 @@ pub(super) fn solve(
 
     let mut m = March {
         st: &st,
-        labels: vec![-1i32; n],
+        // One source: no labels during the march (all 0); they are made
+        // from `U` at the end, in the pass that turns the NaNs into +inf.
+        labels: if multi { vec![-1i32; n] } else { Vec::new() },
         heap: IndexedHeap::with_positions(Cells::new(n)),
         seeds: Vec::with_capacity(front.cells.len()),
         is_target: Vec::new(),
@@ -152,7 +154,9 @@ pub(super) fn solve(
     // The seeds are frozen in increasing value, interleaved with the band:
     // a sorted queue beside the heap (ties go to the seed).
     for c in &front.cells {
-        m.labels[c.index] = c.label;
+        if multi {
+            m.labels[c.index] = c.label;
+        }
         m.heap.tag(c.index as u32, SEED);
         m.seeds.push((c.value, c.index as u32));
     }
@@ -193,13 +197,28 @@ pub(super) fn solve(
         order,
         ..
     } = m;
-    // Every cell not frozen (early stop, unreachable, wall) gets +inf and -1.
+    // Every cell not frozen (early stop, unreachable, wall) gets +inf and
+    // -1; with one source every frozen cell gets label 0.
     let mut u = heap.into_positions().0;
-    for (v, l) in u.iter_mut().zip(labels.iter_mut()) {
-        if v.is_nan() {
-            *v = f64::INFINITY;
-            *l = -1;
+    if multi {
+        for (v, l) in u.iter_mut().zip(labels.iter_mut()) {
+            if v.is_nan() {
+                *v = f64::INFINITY;
+                *l = -1;
+            }
         }
+    } else {
+        labels = u
+            .iter_mut()
+            .map(|v| {
+                if v.is_nan() {
+                    *v = f64::INFINITY;
+                    -1
+                } else {
+                    0
+                }
+            })
+            .collect();
     }
     control.report(1.0);
     Ok(finish(grid, u, labels, order, frozen, stop, None))
@@ -208,6 +227,8 @@ pub(super) fn solve(
 /// The working state of a solve.
 struct March<'a> {
     st: &'a Stencil,
+    /// The labels (several sources only; empty with one source, whose
+    /// kernels neither read nor write labels).
     labels: Vec<i32>,
     /// The band; its position storage holds `U` and every cell's state.
     heap: IndexedHeap<Cells>,
@@ -266,7 +287,7 @@ impl March<'_> {
         options: &EikonalOptions,
         control: &Control<'_>,
     ) -> Result<(StopReason, usize), EikonalError> {
-        let n = self.labels.len();
+        let n = self.heap.positions().len();
         let st = self.st;
         let mut next_seed = 0usize;
         let mut frozen = 0usize;
@@ -325,13 +346,6 @@ impl March<'_> {
                 }
             }
         };
-        if !K::LABELS {
-            // One source: every reached cell has label 0.
-            let u = &self.heap.positions().0;
-            for (l, v) in self.labels.iter_mut().zip(u) {
-                *l = if *v < f64::INFINITY { 0 } else { -1 };
-            }
-        }
         Ok((stop, frozen))
     }
 
