@@ -192,7 +192,16 @@ impl<P: Positions> IndexedHeap<P> {
     /// already in the heap (decrease-key or increase-key).
     #[inline(always)]
     pub fn set_key(&mut self, id: u32, key: f64) {
-        match self.pos.get(id) {
+        self.set_key_at(id, self.pos.get(id), key);
+    }
+
+    /// [`IndexedHeap::set_key`] when the caller has just read the cell's
+    /// slot or tag `p` ([`IndexedHeap::state`]) and changed nothing since:
+    /// saves reading it again.
+    #[inline(always)]
+    pub fn set_key_at(&mut self, id: u32, p: u32, key: f64) {
+        debug_assert_eq!(p, self.pos.get(id));
+        match p {
             p if p >= FIRST_TAG => self.push(id, key),
             p => {
                 let p = p as usize;

@@ -352,7 +352,8 @@ impl March<'_> {
     /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
     #[inline(always)]
     fn visit<K: Kernel>(&mut self, kernel: &K, j: usize, idx: [usize; 3], k: usize, jk: usize) {
-        if !open(self.heap.state(j as u32)) {
+        let state = self.heap.state(j as u32);
+        if !open(state) {
             return;
         }
         let mut jdx = idx;
@@ -361,7 +362,8 @@ impl March<'_> {
             if K::LABELS {
                 self.labels[j] = l;
             }
-            self.heap.set_key(j as u32, v);
+            // The state read above is still current: the kernel only reads.
+            self.heap.set_key_at(j as u32, state, v);
         }
     }
 }
