@@ -675,12 +675,14 @@ fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     let r = r2.sqrt();
     let u0 = wp * r;
     // ∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h (physical derivative).
-    let g = d.map(|dk| wp * dk / r);
+    // Only for the axes that use it (a division each).
+    let g = |k: usize| wp * d[k] / r;
     let mut rhs = w2;
     for &k in strip.missing {
         if (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
             let dv = strip.dv(st, idx, ax, k, d, wp, label, labels);
-            rhs -= (g[k] + dv) * (g[k] + dv);
+            let gk = g(k);
+            rhs -= (gk + dv) * (gk + dv);
         }
     }
     if rhs.is_nan() || rhs <= 0.0 {
@@ -696,14 +698,14 @@ fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
         *t = if a.a2 < f64::INFINITY {
             let v2 = a.a2 - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
             Term {
-                b: (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g[k],
+                b: (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g(k),
                 c2: st.inv_h2_second[k],
                 a1: a.a1,
                 j1: a.j1,
             }
         } else {
             Term {
-                b: v1 + u0 + sh * g[k],
+                b: v1 + u0 + sh * g(k),
                 c2: st.inv_h2[k],
                 a1: a.a1,
                 j1: a.j1,
