@@ -90,9 +90,10 @@ impl Format {
     ///
     /// ```
     /// use geodex::io::Format;
-    /// assert_eq!(Format::from_media_type("image/PNG; charset=binary").unwrap(), Some(Format::Png));
-    /// assert_eq!(Format::from_media_type("application/octet-stream").unwrap(), None);
+    /// assert_eq!(Format::from_media_type("image/PNG; charset=binary")?, Some(Format::Png));
+    /// assert_eq!(Format::from_media_type("application/octet-stream")?, None);
     /// assert!(Format::from_media_type("text/html").is_err());
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
     /// ```
     pub fn from_media_type(media_type: &str) -> Result<Option<Format>, IoError> {
         let essence = media_type

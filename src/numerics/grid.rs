@@ -58,13 +58,14 @@ pub enum GridError {
 /// # Examples
 /// ```
 /// use geodex::numerics::Grid;
-/// let g = Grid::new(&[3, 4], &[1.0, 0.5]).unwrap();
+/// let g = Grid::new(&[3, 4], &[1.0, 0.5])?;
 /// assert_eq!(g.ndim(), 2);
 /// assert_eq!(g.shape(), &[3, 4]);
 /// assert_eq!(g.shape3(), [1, 3, 4]);
 /// assert_eq!(g.len(), 12);
 /// assert_eq!(g.linear([0, 2, 1]), 9);
 /// assert_eq!(g.unravel(9), [0, 2, 1]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grid {

@@ -73,11 +73,12 @@ pub enum CostValues<'a> {
 /// ```
 /// use geodex::numerics::{Grid, IsotropicCost};
 /// use geodex::numerics::metric::{CostValues, Interpretation};
-/// let grid = Grid::unit(&[2, 2]).unwrap();
+/// let grid = Grid::unit(&[2, 2])?;
 /// let speed = vec![1.0f32, 2.0, 0.0, 4.0];
-/// let cost = IsotropicCost::new(&grid, CostValues::F32(speed.into()), Interpretation::Speed, None).unwrap();
+/// let cost = IsotropicCost::new(&grid, CostValues::F32(speed.into()), Interpretation::Speed, None)?;
 /// assert_eq!(cost.at(1), 0.5);
 /// assert!(cost.is_wall(2));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Debug, Clone)]
 pub struct IsotropicCost<'a> {

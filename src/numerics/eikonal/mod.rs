@@ -279,12 +279,13 @@ pub enum EikonalError {
 /// ```
 /// use geodex::numerics::{solve, Control, EikonalOptions, EikonalProblem, Grid, IsotropicCost, Source};
 /// let problem = EikonalProblem {
-///     grid: Grid::unit(&[5, 5]).unwrap(),
-///     cost: IsotropicCost::constant(1.0).unwrap(),
+///     grid: Grid::unit(&[5, 5])?,
+///     cost: IsotropicCost::constant(1.0)?,
 ///     sources: vec![Source::Point(vec![0.0, 0.0])],
 /// };
-/// let out = solve(&problem, &EikonalOptions::DEFAULT, &Control::new()).unwrap();
+/// let out = solve(&problem, &EikonalOptions::DEFAULT, &Control::new())?;
 /// assert!((out.distance[[4, 4]] - 32f64.sqrt()).abs() < 0.05);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn solve(
     problem: &EikonalProblem<'_>,
