@@ -19,6 +19,15 @@ impl TestApp {
         format!("{}{}", self.base, path)
     }
 
+    /// `GET path`, panicking if the request cannot be sent.
+    pub async fn get(&self, path: &str) -> reqwest::Response {
+        self.client
+            .get(self.url(path))
+            .send()
+            .await
+            .unwrap_or_else(|e| panic!("GET {path}: {e}"))
+    }
+
     /// Uploads an array as NPY and returns its id.
     pub async fn upload(&self, array: &ArrayData) -> String {
         let body = io::encode_npy(array).expect("encode npy");

@@ -141,12 +141,7 @@ async fn malformed_requests_are_problems_naming_the_field() {
     )
     .await;
     assert_eq!(v["field"], "cost.dataset");
-    let res = app
-        .client
-        .get(app.url("/v1/datasets/nope/data"))
-        .send()
-        .await
-        .expect("get");
+    let res = app.get("/v1/datasets/nope/data").await;
     problem(res, 404).await;
     let res = app
         .client
@@ -286,12 +281,7 @@ async fn quota_expiry_and_representations() {
         .await
         .expect("get");
     assert_eq!(res.status(), 200, "4096 cells fit in JSON");
-    let res = app
-        .client
-        .get(app.url(&format!("/v1/datasets/{id}/data?format=bmp")))
-        .send()
-        .await
-        .expect("get");
+    let res = app.get(&format!("/v1/datasets/{id}/data?format=bmp")).await;
     let v = problem(res, 400).await;
     assert_eq!(v["field"], "query");
 
@@ -307,12 +297,7 @@ async fn quota_expiry_and_representations() {
 
     // After its lifetime the dataset is gone.
     tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
-    let res = app
-        .client
-        .get(app.url(&format!("/v1/datasets/{id}")))
-        .send()
-        .await
-        .expect("get");
+    let res = app.get(&format!("/v1/datasets/{id}")).await;
     problem(res, 404).await;
 }
 
@@ -323,11 +308,8 @@ async fn json_downloads_are_refused_for_large_arrays() {
         .upload(&ArrayData::U8(ArrayD::zeros(ndarray::IxDyn(&[300, 300]))))
         .await;
     let res = app
-        .client
-        .get(app.url(&format!("/v1/datasets/{id}/data?format=json")))
-        .send()
-        .await
-        .expect("get");
+        .get(&format!("/v1/datasets/{id}/data?format=json"))
+        .await;
     let v = problem(res, 406).await;
     assert_eq!(v["field"], "Accept");
 }

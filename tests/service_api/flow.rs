@@ -49,11 +49,8 @@ async fn upload_distance_download_equals_the_core_bit_for_bit() {
     let id = app.upload(&cost).await;
 
     let meta: serde_json::Value = app
-        .client
-        .get(app.url(&format!("/v1/datasets/{id}")))
-        .send()
+        .get(&format!("/v1/datasets/{id}"))
         .await
-        .expect("meta")
         .json()
         .await
         .expect("json");
@@ -105,11 +102,8 @@ async fn upload_distance_download_equals_the_core_bit_for_bit() {
     // Small results are also offered as JSON, with the same values.
     let url = body["distance"]["data_url"].as_str().expect("url");
     let as_json: serde_json::Value = app
-        .client
-        .get(app.url(&format!("{url}?format=json")))
-        .send()
+        .get(&format!("{url}?format=json"))
         .await
-        .expect("get")
         .json()
         .await
         .expect("json");
@@ -125,12 +119,7 @@ async fn upload_distance_download_equals_the_core_bit_for_bit() {
         ("png16", &b"\x89PNG"[..], "image/png"),
         ("tiff", &b"II*\0"[..], "image/tiff"),
     ] {
-        let res = app
-            .client
-            .get(app.url(&format!("{url}?format={format}")))
-            .send()
-            .await
-            .expect("get");
+        let res = app.get(&format!("{url}?format={format}")).await;
         assert_eq!(res.status(), 200, "{format}");
         assert_eq!(res.headers()["content-type"], media);
         let bytes = res.bytes().await.expect("bytes");
@@ -145,12 +134,7 @@ async fn upload_distance_download_equals_the_core_bit_for_bit() {
         .await
         .expect("delete");
     assert_eq!(res.status(), 204);
-    let res = app
-        .client
-        .get(app.url(&format!("/v1/datasets/{id}")))
-        .send()
-        .await
-        .expect("get");
+    let res = app.get(&format!("/v1/datasets/{id}")).await;
     assert_eq!(res.status(), 404);
 }
 

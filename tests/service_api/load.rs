@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::json;
 
-use crate::common::{problem, spawn};
+use crate::common::{problem, spawn, TestApp};
 
 /// 50 concurrent solves against a pool of 2 threads admitting 4: every answer
 /// is 200 or 503 with Retry-After (none lost, none 500), and `/healthz` keeps
@@ -116,23 +116,7 @@ async fn a_solve_past_its_deadline_is_cancelled_and_the_pool_recovers() {
 
     // The cancelled solve frees its slot as soon as the solver notices; until
     // then the pool (capacity 1) may still answer 503.
-    let small = json!({"cost": {"constant": 1.0, "shape": [8, 8]},
-        "sources": [{"point": [1.0, 1.0]}]});
-    let mut last = 0;
-    for _ in 0..500 {
-        let res = app
-            .client
-            .post(app.url("/v1/grid/distance"))
-            .json(&small)
-            .send()
-            .await
-            .expect("post");
-        last = res.status().as_u16();
-        if last != 503 {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
+    let last = status_once_a_slot_is_free(&app).await;
     assert_eq!(last, 200, "the pool serves the next request");
 }
 
@@ -157,6 +141,13 @@ async fn a_disconnected_client_cancels_its_solve() {
         .send()
         .await;
     assert!(err.is_err(), "the client timed out");
+    let last = status_once_a_slot_is_free(&app).await;
+    assert_eq!(last, 200, "the slot was freed by the disconnect");
+}
+
+/// Posts a tiny solve every 20 ms (at most 500 times) until the pool stops
+/// answering 503, and returns the first other status.
+async fn status_once_a_slot_is_free(app: &TestApp) -> u16 {
     let small = json!({"cost": {"constant": 1.0, "shape": [8, 8]},
         "sources": [{"point": [1.0, 1.0]}]});
     let mut last = 0;
@@ -174,5 +165,5 @@ async fn a_disconnected_client_cancels_its_solve() {
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
-    assert_eq!(last, 200, "the slot was freed by the disconnect");
+    last
 }

@@ -69,33 +69,15 @@ fn document_is_3_1_and_every_error_is_problem_json_with_an_example() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serves_the_document_the_docs_and_problem_fallbacks() {
     let app = spawn(|_| {}).await;
-    let served: serde_json::Value = app
-        .client
-        .get(app.url("/openapi.json"))
-        .send()
-        .await
-        .expect("get")
-        .json()
-        .await
-        .expect("json");
+    let served: serde_json::Value = app.get("/openapi.json").await.json().await.expect("json");
     let generated: serde_json::Value =
         serde_json::from_str(&geodex::http::openapi::document_json()).expect("json");
     assert_eq!(served, generated);
-    let docs = app
-        .client
-        .get(app.url("/docs/"))
-        .send()
-        .await
-        .expect("docs");
+    let docs = app.get("/docs/").await;
     assert_eq!(docs.status(), 200);
     assert!(docs.text().await.expect("html").contains("swagger"));
 
-    let res = app
-        .client
-        .get(app.url("/v2/nothing"))
-        .send()
-        .await
-        .expect("get");
+    let res = app.get("/v2/nothing").await;
     problem(res, 404).await;
     let res = app
         .client
@@ -124,24 +106,11 @@ async fn serves_the_document_the_docs_and_problem_fallbacks() {
         "/v1/datasets/ds_00000000000000000000000000000000"
     );
 
-    let metrics = app
-        .client
-        .get(app.url("/metrics"))
-        .send()
-        .await
-        .expect("metrics")
-        .text()
-        .await
-        .expect("text");
+    let metrics = app.get("/metrics").await.text().await.expect("text");
     assert!(
         metrics.contains("geodex_http_request_duration_seconds_bucket"),
         "{metrics}"
     );
-    let ready = app
-        .client
-        .get(app.url("/readyz"))
-        .send()
-        .await
-        .expect("readyz");
+    let ready = app.get("/readyz").await;
     assert_eq!(ready.status(), 200);
 }
