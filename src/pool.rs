@@ -186,7 +186,14 @@ impl SolverPool {
                 }
             };
             let run_seconds = started.elapsed().as_secs_f64();
-            metrics::histogram!(telemetry::SOLVE_SECONDS, "operation" => operation)
+            // The flag is up when the deadline passed or the client left
+            // while the job ran (the guard only drops after the result is in).
+            let outcome = if flag.load(Ordering::Relaxed) {
+                "cancelled"
+            } else {
+                "completed"
+            };
+            metrics::histogram!(telemetry::SOLVE_SECONDS, "operation" => operation, "outcome" => outcome)
                 .record(run_seconds);
             let timing = JobTiming {
                 queue_seconds: started.duration_since(admitted).as_secs_f64(),

@@ -7,7 +7,8 @@
 //!
 //! Metric names:
 //! * `geodex_http_request_duration_seconds{route,method,status}` (histogram)
-//! * `geodex_solve_seconds{operation,outcome}` (histogram)
+//! * `geodex_solve_seconds{operation,outcome}` (histogram; outcome `completed`
+//!   or `cancelled` when the deadline passed or the client left during the solve)
 //! * `geodex_pool_queue_depth` (gauge: admitted solves not yet started)
 //! * `geodex_pool_in_flight` (gauge: solves running on the pool)
 //! * `geodex_pool_rejected_total` (counter: solves refused with 503)
