@@ -19,12 +19,16 @@
 //! * [`heap`]: indexed 4-ary min-heap with decrease-key and per-cell tags (the narrow band).
 //! * [`eikonal`]: the eikonal solvers (fast marching, fast sweeping, Dijkstra).
 //! * [`exact`]: closed-form geodesic distances used as test oracles and in benchmarks.
+//! * [`filters`]: Gaussian smoothing, gradients and Hessians (metric design).
+//! * [`mesh`]: triangle meshes and their topology (surface solvers).
 
 pub mod control;
 pub mod eikonal;
 pub mod exact;
+pub mod filters;
 pub mod grid;
 pub mod heap;
+pub mod mesh;
 pub mod metric;
 
 pub use control::Control;

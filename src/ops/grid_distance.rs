@@ -11,7 +11,8 @@ use ndarray::ArrayD;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::{InputArray, Inputs, OpError, OpLimits};
+use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use crate::io::ArrayData;
 use crate::numerics::eikonal::{
     Connectivity, EikonalError, EikonalOptions, EikonalProblem, Method, Order, Source, StopReason,
     StopRules,
@@ -376,6 +377,54 @@ fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), Op
         });
     }
     Ok(())
+}
+
+impl Operation for GridDistanceRequest {
+    const NAME: &'static str = "grid.distance";
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        GridDistanceRequest::validate(self, limits)
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        GridDistanceRequest::dataset_ids(self)
+            .into_iter()
+            .map(|(field, id)| (field.to_string(), id.to_string()))
+            .collect()
+    }
+
+    /// Arrays: `distance` (f64), `labels` (i32, unless `outputs.labels` is
+    /// false), `frozen_order` (i64, when asked for). Document: `{"stats": SolveStats}`.
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        let result = execute(self, inputs, limits, control)?;
+        let spacing = Some(result.spacing.clone());
+        let mut arrays = vec![OutputArray {
+            name: "distance".into(),
+            array: ArrayData::F64(result.distance),
+            spacing: spacing.clone(),
+        }];
+        if let Some(labels) = result.labels {
+            arrays.push(OutputArray {
+                name: "labels".into(),
+                array: ArrayData::I32(labels),
+                spacing: spacing.clone(),
+            });
+        }
+        if let Some(order) = result.frozen_order {
+            arrays.push(OutputArray {
+                name: "frozen_order".into(),
+                array: ArrayData::I64(order),
+                spacing,
+            });
+        }
+        let document = serde_json::json!({ "stats": result.stats });
+        Ok(OpOutput { arrays, document })
+    }
 }
 
 /// Runs `grid.distance`: validates, resolves the datasets through `inputs`,

@@ -10,7 +10,61 @@ pub mod grid_distance;
 
 use std::sync::Arc;
 
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
 use crate::io::ArrayData;
+use crate::numerics::Control;
+
+/// One operation of the service: its request schema and how to run it.
+///
+/// This is the contract shared by the synchronous endpoint, the job queue and
+/// the command line. A request is validated without its inputs
+/// ([`Operation::validate`], so that it can be refused before it is queued),
+/// its datasets are fetched by the caller ([`Operation::dataset_ids`]) and
+/// handed in through [`Inputs`], and [`Operation::run`] calls the core on the
+/// solver pool. The output is storage-neutral: named arrays that the caller
+/// stores as datasets (or files), and a JSON document with everything else
+/// (statistics, paths, graphs).
+pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
+    /// The operation's name in job requests and metrics (`grid.distance`).
+    const NAME: &'static str;
+
+    /// Checks everything that does not need the input datasets.
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError>;
+
+    /// The dataset ids the request reads, each with the JSON path of the field naming it.
+    fn dataset_ids(&self) -> Vec<(String, String)>;
+
+    /// Runs the operation. Polls `control` for cancellation and reports progress through it.
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError>;
+}
+
+/// What an operation returns, independent of where it is stored.
+#[derive(Debug, Clone)]
+pub struct OpOutput {
+    /// Arrays to store as datasets, in a stable order (`distance`, `labels`, ...).
+    pub arrays: Vec<OutputArray>,
+    /// The rest of the answer (statistics, paths, graphs) as a JSON object.
+    /// The caller adds one entry per array, named after it, holding the stored dataset's reference.
+    pub document: serde_json::Value,
+}
+
+/// One named output array.
+#[derive(Debug, Clone)]
+pub struct OutputArray {
+    /// Name of the output (`distance`); the key of its reference in the answer.
+    pub name: String,
+    /// The values.
+    pub array: ArrayData,
+    /// Physical spacing per axis (stored with the dataset), if it has one.
+    pub spacing: Option<Vec<f64>>,
+}
 
 /// An input array with the spacing its file declared (NIfTI voxel size), if any.
 #[derive(Debug, Clone)]

@@ -1,0 +1,382 @@
+//! Triangle meshes: the [`TriMesh`] container and its [`Topology`]
+//! (edge adjacency, vertex rings, boundaries, connected components), the
+//! common ground of every surface solver.
+//!
+//! Half-edge convention: edge `k` of face `f` goes from `faces[f][k]` to
+//! `faces[f][(k + 1) % 3]` and has the id `3 f + k`.
+
+/// Sentinel for "no such half-edge / face".
+pub const NONE: u32 = u32::MAX;
+
+/// Why a mesh was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// The mesh has no faces.
+    #[error("the mesh has no faces")]
+    NoFaces,
+    /// A vertex coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A face names a vertex that does not exist.
+    #[error("face {face} refers to vertex {index} but the mesh has {vertices} vertices")]
+    IndexOutOfRange {
+        /// The face.
+        face: usize,
+        /// The index it holds.
+        index: u64,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// A face repeats a vertex.
+    #[error("face {face} repeats a vertex")]
+    RepeatedVertex {
+        /// The face.
+        face: usize,
+    },
+    /// More vertices or faces than 32-bit indices allow.
+    #[error("the mesh is too large ({0} elements)")]
+    TooLarge(usize),
+}
+
+/// A triangle mesh: vertex positions and faces (three vertex indices each).
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::mesh::TriMesh;
+/// let m = TriMesh::new(
+///     vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+///     vec![[0, 1, 2]],
+/// )?;
+/// assert_eq!(m.face_area(0), 0.5);
+/// # Ok::<(), geodex::numerics::mesh::MeshError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriMesh {
+    positions: Vec<[f64; 3]>,
+    faces: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// A mesh with these vertices and faces: coordinates finite, indices in
+    /// range, no face repeating a vertex, at least one face. Zero-area faces
+    /// with three distinct vertices are accepted (readers drop them first).
+    pub fn new(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Result<Self, MeshError> {
+        if positions.len() >= NONE as usize || 3 * faces.len() >= NONE as usize {
+            return Err(MeshError::TooLarge(positions.len().max(faces.len())));
+        }
+        if faces.is_empty() {
+            return Err(MeshError::NoFaces);
+        }
+        if let Some(vertex) = positions
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(MeshError::NonFinite { vertex });
+        }
+        for (face, f) in faces.iter().enumerate() {
+            if let Some(&index) = f.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(MeshError::IndexOutOfRange {
+                    face,
+                    index: index.into(),
+                    vertices: positions.len(),
+                });
+            }
+            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+                return Err(MeshError::RepeatedVertex { face });
+            }
+        }
+        Ok(Self { positions, faces })
+    }
+
+    /// Vertex positions.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.positions
+    }
+
+    /// Faces as vertex index triples.
+    pub fn faces(&self) -> &[[u32; 3]] {
+        &self.faces
+    }
+
+    /// Number of vertices.
+    pub fn num_vertices(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of faces.
+    pub fn num_faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// Position of vertex `v`.
+    #[inline]
+    pub fn position(&self, v: u32) -> [f64; 3] {
+        self.positions[v as usize]
+    }
+
+    /// Area of face `f` (half the norm of the cross product of two edges).
+    pub fn face_area(&self, f: usize) -> f64 {
+        let [a, b, c] = self.faces[f].map(|v| self.position(v));
+        0.5 * norm(cross(sub(b, a), sub(c, a)))
+    }
+
+    /// Mean edge length over all faces' edges (shared edges counted twice).
+    pub fn mean_edge_length(&self) -> f64 {
+        let total: f64 = self
+            .faces
+            .iter()
+            .map(|f| {
+                (0..3)
+                    .map(|k| norm(sub(self.position(f[(k + 1) % 3]), self.position(f[k]))))
+                    .sum::<f64>()
+            })
+            .sum();
+        total / (3 * self.faces.len()) as f64
+    }
+}
+
+/// Edge adjacency of a [`TriMesh`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Topology {
+    /// `opposite[3 f + k]`: the half-edge glued to edge `k` of face `f`, or
+    /// [`NONE`] on a boundary or on a non-manifold edge (more than two faces).
+    pub opposite: Vec<u32>,
+    /// Faces around each vertex in CSR form: the faces of `v` are
+    /// `vertex_faces[vertex_face_offsets[v]..vertex_face_offsets[v + 1]]`.
+    pub vertex_face_offsets: Vec<u32>,
+    /// See `vertex_face_offsets`.
+    pub vertex_faces: Vec<u32>,
+    /// Connected component of each vertex (through faces), `0..components`.
+    /// A vertex in no face is a component of its own.
+    pub component: Vec<u32>,
+    /// Number of connected components.
+    pub components: usize,
+    /// Edges with exactly one face.
+    pub boundary_edges: usize,
+    /// Edges with more than two faces (their faces are not glued to each other).
+    pub non_manifold_edges: usize,
+    /// Edges whose two faces traverse them in the same direction (inconsistent orientation).
+    pub misoriented_edges: usize,
+}
+
+impl Topology {
+    /// Builds the adjacency in `O(F log F)`.
+    pub fn new(mesh: &TriMesh) -> Self {
+        let nf = mesh.num_faces();
+        let nv = mesh.num_vertices();
+        // Sort half-edges by their undirected edge.
+        let mut keys: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * nf);
+        for (f, face) in mesh.faces().iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (face[k], face[(k + 1) % 3]);
+                keys.push((a.min(b), a.max(b), (3 * f + k) as u32));
+            }
+        }
+        keys.sort_unstable();
+        let mut opposite = vec![NONE; 3 * nf];
+        let (mut boundary_edges, mut non_manifold_edges, mut misoriented_edges) = (0, 0, 0);
+        let mut i = 0;
+        while i < keys.len() {
+            let mut j = i + 1;
+            while j < keys.len() && keys[j].0 == keys[i].0 && keys[j].1 == keys[i].1 {
+                j += 1;
+            }
+            match j - i {
+                1 => boundary_edges += 1,
+                2 => {
+                    let (h0, h1) = (keys[i].2, keys[i + 1].2);
+                    opposite[h0 as usize] = h1;
+                    opposite[h1 as usize] = h0;
+                    let from = |h: u32| mesh.faces()[h as usize / 3][h as usize % 3];
+                    if from(h0) == from(h1) {
+                        misoriented_edges += 1;
+                    }
+                }
+                _ => non_manifold_edges += 1,
+            }
+            i = j;
+        }
+        // Vertex -> faces (CSR).
+        let mut counts = vec![0u32; nv + 1];
+        for face in mesh.faces() {
+            for &v in face {
+                counts[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..nv {
+            counts[v + 1] += counts[v];
+        }
+        let mut fill = counts.clone();
+        let mut vertex_faces = vec![0u32; 3 * nf];
+        for (f, face) in mesh.faces().iter().enumerate() {
+            for &v in face {
+                vertex_faces[fill[v as usize] as usize] = f as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        // Components by union-find over face edges.
+        let mut parent: Vec<u32> = (0..nv as u32).collect();
+        fn find(parent: &mut [u32], mut x: u32) -> u32 {
+            while parent[x as usize] != x {
+                parent[x as usize] = parent[parent[x as usize] as usize];
+                x = parent[x as usize];
+            }
+            x
+        }
+        for face in mesh.faces() {
+            for k in 1..3 {
+                let (a, b) = (find(&mut parent, face[0]), find(&mut parent, face[k]));
+                if a != b {
+                    parent[a.max(b) as usize] = a.min(b);
+                }
+            }
+        }
+        let mut component = vec![NONE; nv];
+        let mut components = 0u32;
+        let mut root_id = vec![NONE; nv];
+        for v in 0..nv as u32 {
+            let r = find(&mut parent, v);
+            if root_id[r as usize] == NONE {
+                root_id[r as usize] = components;
+                components += 1;
+            }
+            component[v as usize] = root_id[r as usize];
+        }
+        Self {
+            opposite,
+            vertex_face_offsets: counts,
+            vertex_faces,
+            component,
+            components: components as usize,
+            boundary_edges,
+            non_manifold_edges,
+            misoriented_edges,
+        }
+    }
+
+    /// Faces incident to vertex `v`.
+    pub fn faces_of(&self, v: u32) -> &[u32] {
+        let (a, b) = (
+            self.vertex_face_offsets[v as usize] as usize,
+            self.vertex_face_offsets[v as usize + 1] as usize,
+        );
+        &self.vertex_faces[a..b]
+    }
+
+    /// The face across edge `k` of face `f`, if the edge is interior and manifold.
+    pub fn neighbour(&self, f: usize, k: usize) -> Option<usize> {
+        let h = self.opposite[3 * f + k];
+        (h != NONE).then_some(h as usize / 3)
+    }
+}
+
+/// `a - b`.
+#[inline]
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Cross product.
+#[inline]
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Dot product.
+#[inline]
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Euclidean norm.
+#[inline]
+pub fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> TriMesh {
+        TriMesh::new(
+            vec![
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [1., 1., 0.],
+                [0., 1., 0.],
+                [5., 5., 5.],
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn adjacency_of_two_triangles() {
+        let m = square();
+        let t = Topology::new(&m);
+        assert_eq!(t.boundary_edges, 4);
+        assert_eq!(t.non_manifold_edges, 0);
+        assert_eq!(t.misoriented_edges, 0);
+        // Edge 2 of face 0 is (2, 0); edge 0 of face 1 is (0, 2).
+        assert_eq!(t.opposite[2], 3);
+        assert_eq!(t.neighbour(1, 0), Some(0));
+        assert_eq!(t.neighbour(0, 0), None);
+        assert_eq!(t.faces_of(0), &[0, 1]);
+        assert_eq!(t.faces_of(4), &[] as &[u32]);
+        // The isolated vertex is its own component.
+        assert_eq!(t.components, 2);
+        assert_eq!(t.component[4], 1);
+        assert!((m.mean_edge_length() - (4.0 + 2.0 * 2f64.sqrt()) / 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn non_manifold_fans_are_counted_not_glued() {
+        let m = TriMesh::new(
+            vec![
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [0., 1., 0.],
+                [0., -1., 0.],
+                [0., 0., 1.],
+            ],
+            vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+        )
+        .unwrap();
+        let t = Topology::new(&m);
+        assert_eq!(t.non_manifold_edges, 1);
+        assert_eq!(t.opposite[0], NONE);
+    }
+
+    #[test]
+    fn invalid_meshes_are_refused() {
+        let p = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert_eq!(TriMesh::new(p.clone(), vec![]), Err(MeshError::NoFaces));
+        assert!(matches!(
+            TriMesh::new(p.clone(), vec![[0, 1, 3]]),
+            Err(MeshError::IndexOutOfRange {
+                face: 0,
+                index: 3,
+                ..
+            })
+        ));
+        assert_eq!(
+            TriMesh::new(p.clone(), vec![[0, 1, 1]]),
+            Err(MeshError::RepeatedVertex { face: 0 })
+        );
+        let mut bad = p;
+        bad[1][2] = f64::NAN;
+        assert_eq!(
+            TriMesh::new(bad, vec![[0, 1, 2]]),
+            Err(MeshError::NonFinite { vertex: 1 })
+        );
+    }
+}
