@@ -7,6 +7,7 @@
 //! * [`error`]: [`error::Problem`] (RFC 9457) and [`error::ApiError`].
 //! * [`extract`]: extractors whose rejections are problems.
 //! * [`openapi`]: document metadata and reusable error responses.
+//! * [`operation`]: the generic synchronous path of an operation (load inputs, run on the pool, store outputs).
 //! * [`layers`]: middleware (request metrics, the tower stack).
 //! * [`routes`]: one module per group of endpoints.
 
@@ -14,6 +15,7 @@ pub mod error;
 pub mod extract;
 pub mod layers;
 pub mod openapi;
+pub mod operation;
 pub mod routes;
 
 use std::sync::atomic::{AtomicBool, Ordering};
