@@ -273,6 +273,111 @@ impl Topology {
     }
 }
 
+/// A point on a surface: a vertex, or a point inside a face given by its
+/// barycentric coordinates (non-negative, summing to 1, in the order of the
+/// face's vertices).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SurfacePoint {
+    /// A vertex.
+    Vertex(u32),
+    /// A point of face `face` with barycentric coordinates `bary`.
+    Face {
+        /// The face.
+        face: u32,
+        /// Barycentric coordinates with respect to the face's three vertices.
+        bary: [f64; 3],
+    },
+}
+
+impl SurfacePoint {
+    /// Checks that the point exists on `mesh` (index in range, barycentric
+    /// coordinates finite, >= -1e-12 and summing to 1 within 1e-9).
+    pub fn validate(&self, mesh: &TriMesh) -> Result<(), String> {
+        match *self {
+            SurfacePoint::Vertex(v) if (v as usize) < mesh.num_vertices() => Ok(()),
+            SurfacePoint::Vertex(v) => Err(format!(
+                "vertex {v} does not exist (the mesh has {} vertices)",
+                mesh.num_vertices()
+            )),
+            SurfacePoint::Face { face, bary } => {
+                if face as usize >= mesh.num_faces() {
+                    return Err(format!(
+                        "face {face} does not exist (the mesh has {} faces)",
+                        mesh.num_faces()
+                    ));
+                }
+                if bary.iter().any(|b| !b.is_finite() || *b < -1e-12)
+                    || (bary.iter().sum::<f64>() - 1.0).abs() > 1e-9
+                {
+                    return Err(format!(
+                        "barycentric coordinates {bary:?} must be >= 0 and sum to 1"
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Position in space.
+    pub fn position(&self, mesh: &TriMesh) -> [f64; 3] {
+        match *self {
+            SurfacePoint::Vertex(v) => mesh.position(v),
+            SurfacePoint::Face { face, bary } => {
+                let f = mesh.faces()[face as usize];
+                let mut p = [0.0; 3];
+                for k in 0..3 {
+                    let q = mesh.position(f[k]);
+                    for c in 0..3 {
+                        p[c] += bary[k] * q[c];
+                    }
+                }
+                p
+            }
+        }
+    }
+}
+
+/// Per-vertex result of a surface distance solver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshDistance {
+    /// Geodesic distance of every vertex to the nearest source (`+inf` where
+    /// unreachable: another component, or beyond the maximum distance).
+    pub distance: Vec<f64>,
+    /// Index (in the source list) of the nearest source, `-1` where unreachable.
+    pub labels: Vec<i32>,
+}
+
+/// Why a surface solver stopped without a result.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshSolveError {
+    /// No sources were given.
+    #[error("at least one source is needed")]
+    NoSources,
+    /// A source is not on the mesh.
+    #[error("source {index}: {reason}")]
+    InvalidSource {
+        /// Index of the source in the list.
+        index: usize,
+        /// Why.
+        reason: String,
+    },
+    /// An option is out of range.
+    #[error("{option}: {reason}")]
+    InvalidOption {
+        /// The option.
+        option: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The caller raised the cancel flag.
+    #[error("cancelled")]
+    Cancelled,
+    /// A numerical failure the solver could not recover from (for example a
+    /// factorisation that broke down); the message says which.
+    #[error("numerical failure: {0}")]
+    Numerical(String),
+}
+
 /// `a - b`.
 #[inline]
 pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
