@@ -10,6 +10,7 @@ use crate::config::ServeArgs;
 
 pub mod bench;
 pub mod distance;
+pub mod path;
 mod usage;
 
 /// geodex: geodesic distances, minimal paths and segmentations.
@@ -38,6 +39,8 @@ pub enum Command {
     Distance(distance::DistanceArgs),
     /// Time the solvers on fixed problems (see `geodex bench --help`).
     Bench(bench::BenchArgs),
+    /// Extract minimal paths from NPY / image files (batch use).
+    Path(path::PathArgs),
 }
 
 /// Entry point of the binary.
@@ -47,6 +50,7 @@ pub fn main() -> ExitCode {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
+        Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -21,6 +21,8 @@
 //! * [`exact`]: closed-form geodesic distances used as test oracles and in benchmarks.
 //! * [`filters`]: Gaussian smoothing, gradients and Hessians (metric design).
 //! * [`mesh`]: triangle meshes and their topology (surface solvers).
+//! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
+//! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 
 pub mod control;
 pub mod eikonal;
@@ -30,6 +32,8 @@ pub mod grid;
 pub mod heap;
 pub mod mesh;
 pub mod metric;
+pub mod metric_design;
+pub mod paths;
 
 pub use control::Control;
 pub use eikonal::{

@@ -5,8 +5,12 @@
 //! Nothing here does IO: input datasets are handed in through [`Inputs`].
 //!
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
+//! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
+//! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 
 pub mod grid_distance;
+pub mod grid_metric;
+pub mod grid_paths;
 
 use std::sync::Arc;
 
