@@ -427,8 +427,8 @@ fn maze_paths_never_enter_a_wall_and_match_the_distance_map() {
             )
             .unwrap();
         for s in path.points.windows(2) {
-            for i in 0..grid.len() {
-                if wall[i] {
+            for (i, &is_wall) in wall.iter().enumerate() {
+                if is_wall {
                     let c = grid.unravel(i).map(|v| v as f64);
                     assert!(
                         !segment_meets_open_box(s[0], s[1], c),

@@ -191,6 +191,8 @@ impl MinimalPath {
 pub struct SourceSet {
     /// Source cell (linear index) to the source points attached to it.
     by_cell: HashMap<usize, Vec<(usize, [f64; 3])>>,
+    /// The point sources (index, position), for the local solution around them.
+    points: Vec<(usize, [f64; 3])>,
 }
 
 impl SourceSet {
@@ -202,6 +204,7 @@ impl SourceSet {
             return Err(PathError::NoSources);
         }
         let mut by_cell: HashMap<usize, Vec<(usize, [f64; 3])>> = HashMap::new();
+        let mut points = Vec::new();
         for (index, s) in sources.iter().enumerate() {
             let err = |reason: String| PathError::Source { index, reason };
             match s {
@@ -212,6 +215,7 @@ impl SourceSet {
                     }
                     let c = grid.linear(q.map(|v| v.round() as usize));
                     by_cell.entry(c).or_default().push((index, q));
+                    points.push((index, q));
                 }
                 Source::Cells { cells, .. } => {
                     for cell in cells {
@@ -227,7 +231,24 @@ impl SourceSet {
                 }
             }
         }
-        Ok(Self { by_cell })
+        Ok(Self { by_cell, points })
+    }
+
+    /// The nearest point source within `radius` (index units) of `x`.
+    fn near_point(&self, grid: &Grid, x: [f64; 3], radius: f64) -> Option<[f64; 3]> {
+        let d2 = |p: &[f64; 3]| -> f64 { (0..3).map(|k| (p[k] - x[k]).powi(2)).sum() };
+        if self.points.len() <= 16 {
+            return self
+                .points
+                .iter()
+                .map(|(_, p)| (d2(p), *p))
+                .filter(|(d, _)| *d <= radius * radius)
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, p)| p);
+        }
+        self.near(grid, x, radius)
+            .filter(|(index, p)| self.points.iter().any(|(i, q)| i == index && q == p))
+            .map(|(_, p)| p)
     }
 
     /// The nearest source point within `radius` (index units) of `x`, with its index.
@@ -282,6 +303,10 @@ impl CellCost for [f64] {
         self[i]
     }
 }
+
+/// Radius (cells) around a point source inside which the solver prescribes
+/// the exact local solution `W(p)|x − p|` (its default `source_radius`).
+pub const LOCAL_RADIUS: f64 = 1.5;
 
 /// A distance map ready for descents: the grid, `U` (flat, C order) and the
 /// cost `W` (walls, and the geodesic length).
@@ -383,10 +408,35 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
 
     /// `∇U(x)`, interpolated over the finite surrounding cells.
     pub fn gradient(&self, x: [f64; 3]) -> Option<[f64; 3]> {
+        self.gradient_near(x, None)
+    }
+
+    /// `∇U(x)`; the cells within [`LOCAL_RADIUS`] of the point source `near`
+    /// (and in its sight) use the gradient of the exact local solution the
+    /// solver put there, `∇U = W (x − p) / |x − p|` (physical units), instead
+    /// of finite differences across the singularity at `p`.
+    fn gradient_near(&self, x: [f64; 3], near: Option<[f64; 3]>) -> Option<[f64; 3]> {
+        let h = self.grid.spacing3();
         let mut g = [0.0; 3];
         let mut total = 0.0;
         for (c, w) in self.corners(x) {
-            if let Some(gc) = self.cell_gradient(c) {
+            let local = near.and_then(|p| {
+                let cf = c.map(|v| v as f64);
+                let d: [f64; 3] = [0, 1, 2].map(|k| (cf[k] - p[k]) * h[k]);
+                let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let di2: f64 = (0..3).map(|k| (cf[k] - p[k]).powi(2)).sum();
+                if di2 > LOCAL_RADIUS * LOCAL_RADIUS || self.segment_blocked(cf, p) {
+                    return None;
+                }
+                let wc = self.cost.cost_at(self.grid.linear(c.map(|v| v as usize)));
+                // At p itself the direction is undefined: the corner is skipped.
+                Some((dn > 0.0 && wc.is_finite()).then(|| d.map(|v| wc * v / dn)))
+            });
+            let gc = match local {
+                Some(local) => local,
+                None => self.cell_gradient(c),
+            };
+            if let Some(gc) = gc {
                 for k in 0..3 {
                     g[k] += w * gc[k];
                 }
@@ -482,11 +532,12 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
         let mut ux = self.value(x);
         let (mut continuous, mut discrete) = (0usize, 0usize);
         // The unit index-space direction at y, if defined.
-        let unit = |y: [f64; 3]| -> Option<[f64; 3]> {
+        let mut near: Option<[f64; 3]>;
+        let unit = |y: [f64; 3], near: Option<[f64; 3]>| -> Option<[f64; 3]> {
             if !grid.contains_point3(y) {
                 return None;
             }
-            let g = self.gradient(y)?;
+            let g = self.gradient_near(y, near)?;
             let v = dir.direction(y, g)?;
             let mut w = [0.0; 3];
             for k in 0..3 {
@@ -511,11 +562,12 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
             }
             // Runge–Kutta 4 on the unit field.
             let s = options.step;
+            near = sources.near_point(grid, x, LOCAL_RADIUS + 2.0);
             let rk = (|| {
-                let k1 = unit(x)?;
-                let k2 = unit(add(x, k1, 0.5 * s))?;
-                let k3 = unit(add(x, k2, 0.5 * s))?;
-                let k4 = unit(add(x, k3, s))?;
+                let k1 = unit(x, near)?;
+                let k2 = unit(add(x, k1, 0.5 * s), near)?;
+                let k3 = unit(add(x, k2, 0.5 * s), near)?;
+                let k4 = unit(add(x, k3, s), near)?;
                 let mut d = [0.0; 3];
                 for k in 0..3 {
                     d[k] = (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]) / 6.0;

@@ -1006,11 +1006,8 @@ fn svg(
         colormap: Colormap::Grey,
         ..RenderOptions::default()
     };
-    let png = match render_png(shown, &options) {
-        Ok(png) => Some(png),
-        // A constant image has no range to map: draw the paths alone.
-        Err(_) => None,
-    };
+    // A constant image has no range to map: the paths are drawn alone.
+    let png = render_png(shown, &options).ok();
     let (wx, wy) = (shape[1] as f64 * h[1], shape[0] as f64 * h[0]);
     let (x0, y0) = (-0.5 * h[1], -0.5 * h[0]);
     let stroke = 0.004 * wx.max(wy);
