@@ -5,8 +5,16 @@
 //! Nothing here does IO: input datasets are handed in through [`Inputs`].
 //!
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
+//! * [`grid_edt`], [`grid_segment`], [`grid_skeleton`], [`grid_offset`], [`grid_plan`]: exact distance
+//!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 
 pub mod grid_distance;
+pub mod grid_edt;
+pub mod grid_inputs;
+pub mod grid_offset;
+pub mod grid_plan;
+pub mod grid_segment;
+pub mod grid_skeleton;
 
 use std::sync::Arc;
 
