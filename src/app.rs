@@ -76,6 +76,9 @@ impl Application {
             solve_timeout: settings.request_timeout(),
             draining: Arc::new(AtomicBool::new(false)),
             metrics,
+            path_cache: Arc::new(crate::ops::grid_paths::DistanceCache::new(
+                settings.path_cache_bytes,
+            )),
         };
         let router = http::router(state.clone(), &settings);
         let listener = TcpListener::bind(settings.addr)

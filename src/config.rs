@@ -42,6 +42,10 @@ pub struct ServeArgs {
     /// Bytes of decoded arrays kept in memory for repeated solves.
     #[arg(long, env = "GEODEX_CACHE_BYTES", default_value_t = 1 << 30)]
     pub cache_bytes: usize,
+    /// Bytes of designed costs and distance maps kept for later minimal-path
+    /// requests (`POST /v1/grid/paths`; 8 bytes per cell each); 0 disables it.
+    #[arg(long, env = "GEODEX_PATH_CACHE_BYTES", default_value_t = 512 << 20)]
+    pub path_cache_bytes: usize,
     /// Allowed CORS origins, comma separated; `*` allows any. Default: none.
     #[arg(long, env = "GEODEX_CORS_ORIGINS", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
@@ -68,6 +72,7 @@ impl Default for ServeArgs {
             storage_quota_bytes: 8 << 30,
             dataset_ttl_secs: 24 * 3600,
             cache_bytes: 1 << 30,
+            path_cache_bytes: 512 << 20,
             cors_origins: Vec::new(),
             shutdown_grace_secs: 30,
             log_json: false,

@@ -129,7 +129,7 @@ pub enum DistanceError {
     Cancelled,
 }
 
-fn flag(flag: impl Into<String>, reason: impl Into<String>) -> DistanceError {
+pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> DistanceError {
     DistanceError::Flag {
         flag: flag.into(),
         reason: reason.into(),
@@ -178,6 +178,7 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
             } else {
                 InterpretationSpec::Cost
             },
+            design: None,
         },
         spacing: args.spacing.clone(),
         obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
@@ -235,7 +236,7 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
 }
 
 /// Parses repeated `I,J[,K]` values; errors name the occurrence (1-based).
-fn parse_points(name: &str, values: &[String]) -> Result<Vec<Vec<f64>>, DistanceError> {
+pub(crate) fn parse_points(name: &str, values: &[String]) -> Result<Vec<Vec<f64>>, DistanceError> {
     values
         .iter()
         .enumerate()
@@ -262,7 +263,7 @@ fn parse_points(name: &str, values: &[String]) -> Result<Vec<Vec<f64>>, Distance
         .collect()
 }
 
-fn read_array(name: &str, path: &Path) -> Result<io::Decoded, DistanceError> {
+pub(crate) fn read_array(name: &str, path: &Path) -> Result<io::Decoded, DistanceError> {
     let bytes = std::fs::read(path)
         .map_err(|e| flag(name, format!("cannot read '{}': {e}", path.display())))?;
     let limits = Limits {
@@ -279,7 +280,7 @@ fn write_array(name: &str, path: &Path, array: ArrayData) -> Result<(), Distance
 }
 
 /// Maps an [`OpError`] of the request back to the flag that produced the field.
-fn op_error(e: OpError, cost_flag: &str) -> DistanceError {
+pub(crate) fn op_error(e: OpError, cost_flag: &str) -> DistanceError {
     let reason = match &e {
         OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => reason.clone(),
         OpError::UnknownDataset { id, .. } => format!("dataset '{id}' not found"),
@@ -290,7 +291,7 @@ fn op_error(e: OpError, cost_flag: &str) -> DistanceError {
 }
 
 /// The command-line flag behind a JSON field path of [`GridDistanceRequest`].
-fn flag_of(field: &str, cost_flag: &str) -> String {
+pub(crate) fn flag_of(field: &str, cost_flag: &str) -> String {
     let indexed = |prefix: &str| -> Option<usize> {
         let rest = field.strip_prefix(prefix)?;
         rest[..rest.find(']')?].parse().ok()

@@ -10,6 +10,7 @@ use crate::config::ServeArgs;
 
 pub mod bench;
 pub mod distance;
+pub mod path;
 pub mod segment;
 mod usage;
 
@@ -49,6 +50,8 @@ pub enum Command {
     Offset(segment::OffsetArgs),
     /// Collision-free path of a disc robot among obstacles.
     Plan(segment::PlanArgs),
+    /// Extract minimal paths from NPY / image files (batch use).
+    Path(path::PathArgs),
 }
 
 /// Entry point of the binary.
@@ -63,6 +66,7 @@ pub fn main() -> ExitCode {
         Some(Command::Skeleton(args)) => segment::run_skeleton(&args).map_err(Into::into),
         Some(Command::Offset(args)) => segment::run_offset(&args).map_err(Into::into),
         Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
+        Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
         None => crate::app::serve(cli.serve),
     };
     match result {

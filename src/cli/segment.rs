@@ -381,12 +381,14 @@ pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
             constant: None,
             shape: None,
             interpretation: InterpretationSpec::Cost,
+            design: None,
         },
         (None, Some(s)) => CostSpec {
             dataset: None,
             constant: Some(1.0),
             shape: Some(s.clone()),
             interpretation: InterpretationSpec::Cost,
+            design: None,
         },
         (None, None) => return Err(flag("--cost", "give --cost or --shape")),
     };
@@ -489,6 +491,7 @@ pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
                 constant: None,
                 shape: None,
                 interpretation: InterpretationSpec::Cost,
+                design: None,
             }),
             None => None,
         },

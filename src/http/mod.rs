@@ -49,6 +49,8 @@ pub struct AppState {
     pub draining: Arc<AtomicBool>,
     /// The Prometheus registry.
     pub metrics: PrometheusHandle,
+    /// Designed costs and distance maps kept for later minimal-path requests.
+    pub path_cache: Arc<crate::ops::grid_paths::DistanceCache>,
 }
 
 impl AppState {
@@ -73,6 +75,8 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::segment::skeleton))
         .routes(routes!(routes::segment::offset))
         .routes(routes!(routes::segment::plan))
+        .routes(routes!(routes::metric::metric))
+        .routes(routes!(routes::paths::paths))
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
         .routes(routes!(routes::health::metrics))

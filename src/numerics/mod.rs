@@ -26,6 +26,8 @@
 //! * [`skeleton`]: medial axis with pruning, 2D skeleton graphs.
 //! * [`segmentation`]: geodesic Voronoi segmentation, Dice, Euclidean offsets.
 //! * [`planning`]: motion planning for a disc robot (clearance, widest robot, safe paths).
+//! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
+//! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 
 pub mod contours;
 pub mod control;
@@ -37,6 +39,8 @@ pub mod grid;
 pub mod heap;
 pub mod mesh;
 pub mod metric;
+pub mod metric_design;
+pub mod paths;
 pub mod planning;
 pub mod segmentation;
 pub mod skeleton;

@@ -5,12 +5,14 @@
 //! physical lengths are index offsets times the per-axis `spacing`.
 
 use std::borrow::Cow;
+use std::sync::Arc;
 use std::time::Instant;
 
 use ndarray::ArrayD;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::grid_metric::{apply_design, array_to_f64, DesignSpec};
 use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::eikonal::{
@@ -92,6 +94,214 @@ pub struct CostSpec {
     /// Whether the values are a cost `W` (default) or a speed `F = 1/W`.
     #[serde(default)]
     pub interpretation: InterpretationSpec,
+    /// Build the cost from the image named by `dataset` instead of reading
+    /// it as a cost (intensity, edges or vesselness; see `grid.metric`).
+    /// Needs `dataset` and `interpretation: cost`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub design: Option<DesignSpec>,
+}
+
+impl CostSpec {
+    /// Checks everything that does not need the input arrays. Fields are
+    /// named under `cost` (`cost.constant`, `cost.design.epsilon`).
+    pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        match (&self.dataset, self.constant, &self.shape) {
+            (Some(_), None, None) => {}
+            (None, Some(c), Some(shape)) => {
+                if !(c.is_finite() && c > 0.0) {
+                    return Err(OpError::invalid(
+                        "cost.constant",
+                        format!("{c} must be finite and > 0"),
+                    ));
+                }
+                check_shape(shape, "cost.shape", limits)?;
+            }
+            (Some(_), _, _) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "give either `dataset`, or `constant` with `shape`, not both",
+                ))
+            }
+            (None, Some(_), None) => {
+                return Err(OpError::invalid(
+                    "cost.shape",
+                    "a constant cost needs the grid shape",
+                ))
+            }
+            (None, None, _) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "give either `dataset`, or `constant` with `shape`",
+                ))
+            }
+        }
+        if let Some(design) = &self.design {
+            if self.dataset.is_none() {
+                return Err(OpError::invalid(
+                    "cost.design",
+                    "a design needs the image in `cost.dataset`",
+                ));
+            }
+            if self.interpretation != InterpretationSpec::Cost {
+                return Err(OpError::invalid(
+                    "cost.interpretation",
+                    "a designed metric is a cost; leave `interpretation` out",
+                ));
+            }
+            design.validate("cost.design")?;
+        }
+        Ok(())
+    }
+}
+
+/// Where the values of a [`ResolvedCost`] live.
+#[derive(Debug, Clone)]
+enum ResolvedValues {
+    Constant(f64),
+    /// An f32 or f64 dataset, shared with the caller (no copy).
+    Shared(Arc<ArrayData>),
+    /// Converted (integer datasets) or designed values.
+    Owned(Vec<f64>),
+}
+
+/// A cost resolved from a [`CostSpec`] and its datasets: the grid, the
+/// spacing that was used, and the (validated) values and walls, owned so
+/// that the caller can keep it (caches) and borrow an [`IsotropicCost`]
+/// from it with [`ResolvedCost::isotropic`].
+#[derive(Debug, Clone)]
+pub struct ResolvedCost {
+    /// The grid (shape and spacing).
+    pub grid: Grid,
+    /// The spacing, per caller axis.
+    pub spacing: Vec<f64>,
+    values: ResolvedValues,
+    interpretation: Interpretation,
+    mask: Option<Vec<bool>>,
+    from_dataset: bool,
+}
+
+impl ResolvedCost {
+    /// The cost as the core takes it (borrowing the values; checked when resolved).
+    pub fn isotropic(&self) -> Result<IsotropicCost<'_>, OpError> {
+        let values = match &self.values {
+            ResolvedValues::Constant(c) => CostValues::Constant(*c),
+            ResolvedValues::Owned(v) => CostValues::F64(Cow::Borrowed(v)),
+            ResolvedValues::Shared(a) => a.as_cost_values().ok_or_else(|| {
+                OpError::invalid(
+                    "cost.dataset",
+                    format!("a {:?} array cannot be a cost", a.dtype()),
+                )
+            })?,
+        };
+        IsotropicCost::new(
+            &self.grid,
+            values,
+            self.interpretation,
+            self.mask.as_deref().map(Cow::Borrowed),
+        )
+        .map_err(|e| metric_error(e, self.from_dataset))
+    }
+
+    /// The cost `W` of every cell (`+inf` on walls), as a new vector.
+    pub fn cost_values(&self) -> Result<Vec<f64>, OpError> {
+        let cost = self.isotropic()?;
+        Ok((0..self.grid.len()).map(|i| cost.at(i)).collect())
+    }
+}
+
+/// Resolves a [`CostSpec`] against its datasets: validates it, looks up
+/// `cost.dataset` and the `obstacles` mask in `inputs`, applies the
+/// `design` if any, and checks every value. `spacing` is the request's
+/// spacing (default: the dataset's, else 1). This is the grid and cost
+/// construction of `grid.distance`, shared by every operation that takes a
+/// `cost` (paths, segmentation). Errors name `cost.*`, `obstacles`, `spacing`.
+pub fn resolve_cost(
+    cost: &CostSpec,
+    spacing: Option<&[f64]>,
+    obstacles: Option<&str>,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<ResolvedCost, OpError> {
+    cost.validate(limits)?;
+    let lookup = |field: &str, id: &str| -> Result<InputArray, OpError> {
+        inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
+            field: field.into(),
+            id: id.into(),
+        })
+    };
+    let cost_input = match &cost.dataset {
+        Some(id) => Some(lookup("cost.dataset", id)?),
+        None => None,
+    };
+    let shape: Vec<usize> = match (&cost_input, &cost.shape) {
+        (Some(input), _) => {
+            let shape = input.array.shape().to_vec();
+            check_shape(&shape, "cost.dataset", limits)?;
+            shape
+        }
+        (None, Some(shape)) => shape.clone(),
+        (None, None) => return Err(OpError::invalid("cost.shape", "missing")),
+    };
+    let spacing = spacing
+        .map(<[f64]>::to_vec)
+        .or_else(|| cost_input.as_ref().and_then(|c| c.spacing.clone()))
+        .unwrap_or_else(|| vec![1.0; shape.len()]);
+    let grid = Grid::new(&shape, &spacing).map_err(|e| grid_error(e, &shape))?;
+
+    let mask = match obstacles {
+        Some(id) => {
+            let m = lookup("obstacles", id)?;
+            if m.array.shape() != shape.as_slice() {
+                return Err(OpError::invalid(
+                    "obstacles",
+                    format!(
+                        "the mask has shape {:?} but the grid has shape {:?}",
+                        m.array.shape(),
+                        shape
+                    ),
+                ));
+            }
+            Some(m.array.to_mask())
+        }
+        None => None,
+    };
+    let interpretation = match cost.interpretation {
+        InterpretationSpec::Cost => Interpretation::Cost,
+        InterpretationSpec::Speed => Interpretation::Speed,
+    };
+    let values = match (&cost_input, cost.constant, &cost.design) {
+        (Some(input), _, Some(design)) => ResolvedValues::Owned(apply_design(
+            &grid,
+            &input.array,
+            design,
+            "cost.design",
+            "cost.dataset",
+            control,
+        )?),
+        (Some(input), _, None) => match &*input.array {
+            ArrayData::F32(_) | ArrayData::F64(_) => ResolvedValues::Shared(input.array.clone()),
+            ArrayData::Bool(_) => {
+                return Err(OpError::invalid(
+                    "cost.dataset",
+                    format!("a {:?} array cannot be a cost", input.array.dtype()),
+                ))
+            }
+            other => ResolvedValues::Owned(array_to_f64(other)),
+        },
+        (None, Some(c), _) => ResolvedValues::Constant(c),
+        (None, None, _) => return Err(OpError::invalid("cost", "missing")),
+    };
+    let resolved = ResolvedCost {
+        grid,
+        spacing,
+        values,
+        interpretation,
+        mask,
+        from_dataset: cost_input.is_some(),
+    };
+    resolved.isotropic()?;
+    Ok(resolved)
 }
 
 /// How to read the values of the cost.
@@ -231,36 +441,7 @@ impl GridDistanceRequest {
     /// Checks everything that does not need the input arrays, so that a
     /// request can be refused before it is queued.
     pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        match (&self.cost.dataset, self.cost.constant, &self.cost.shape) {
-            (Some(_), None, None) => {}
-            (None, Some(c), Some(shape)) => {
-                if !(c.is_finite() && c > 0.0) {
-                    return Err(OpError::invalid(
-                        "cost.constant",
-                        format!("{c} must be finite and > 0"),
-                    ));
-                }
-                check_shape(shape, "cost.shape", limits)?;
-            }
-            (Some(_), _, _) => {
-                return Err(OpError::invalid(
-                    "cost",
-                    "give either `dataset`, or `constant` with `shape`, not both",
-                ))
-            }
-            (None, Some(_), None) => {
-                return Err(OpError::invalid(
-                    "cost.shape",
-                    "a constant cost needs the grid shape",
-                ))
-            }
-            (None, None, _) => {
-                return Err(OpError::invalid(
-                    "cost",
-                    "give either `dataset`, or `constant` with `shape`",
-                ))
-            }
-        }
+        self.cost.validate(limits)?;
         if self.sources.is_empty() {
             return Err(OpError::invalid(
                 "sources",
@@ -356,7 +537,7 @@ impl GridDistanceRequest {
     }
 }
 
-fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), OpError> {
+pub(crate) fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), OpError> {
     if !(2..=3).contains(&shape.len()) {
         return Err(OpError::invalid(
             field,
@@ -436,68 +617,16 @@ pub fn execute(
     control: &Control<'_>,
 ) -> Result<GridDistanceResult, OpError> {
     req.validate(limits)?;
-    let lookup = |field: &str, id: &str| -> Result<InputArray, OpError> {
-        inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
-            field: field.into(),
-            id: id.into(),
-        })
-    };
-    let cost_input = match &req.cost.dataset {
-        Some(id) => Some(lookup("cost.dataset", id)?),
-        None => None,
-    };
-    let shape: Vec<usize> = match (&cost_input, &req.cost.shape) {
-        (Some(input), _) => {
-            let shape = input.array.shape().to_vec();
-            check_shape(&shape, "cost.dataset", limits)?;
-            shape
-        }
-        (None, Some(shape)) => shape.clone(),
-        (None, None) => return Err(OpError::invalid("cost.shape", "missing")),
-    };
-    let spacing = req
-        .spacing
-        .clone()
-        .or_else(|| cost_input.as_ref().and_then(|c| c.spacing.clone()))
-        .unwrap_or_else(|| vec![1.0; shape.len()]);
-    let grid = Grid::new(&shape, &spacing).map_err(|e| grid_error(e, &shape))?;
-
-    let mask_input = match &req.obstacles {
-        Some(id) => Some(lookup("obstacles", id)?),
-        None => None,
-    };
-    let mask = match &mask_input {
-        Some(m) => {
-            if m.array.shape() != shape.as_slice() {
-                return Err(OpError::invalid(
-                    "obstacles",
-                    format!(
-                        "the mask has shape {:?} but the grid has shape {:?}",
-                        m.array.shape(),
-                        shape
-                    ),
-                ));
-            }
-            Some(Cow::Owned(m.array.to_mask()))
-        }
-        None => None,
-    };
-    let interpretation = match req.cost.interpretation {
-        InterpretationSpec::Cost => Interpretation::Cost,
-        InterpretationSpec::Speed => Interpretation::Speed,
-    };
-    let values = match (&cost_input, req.cost.constant) {
-        (Some(input), _) => input.array.as_cost_values().ok_or_else(|| {
-            OpError::invalid(
-                "cost.dataset",
-                format!("a {:?} array cannot be a cost", input.array.dtype()),
-            )
-        })?,
-        (None, Some(c)) => CostValues::Constant(c),
-        (None, None) => return Err(OpError::invalid("cost", "missing")),
-    };
-    let cost = IsotropicCost::new(&grid, values, interpretation, mask)
-        .map_err(|e| metric_error(e, cost_input.is_some()))?;
+    let resolved = resolve_cost(
+        &req.cost,
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+        inputs,
+        limits,
+        control,
+    )?;
+    let cost = resolved.isotropic()?;
+    let spacing = resolved.spacing.clone();
     let sources = req
         .sources
         .iter()
@@ -511,7 +640,7 @@ pub fn execute(
         })
         .collect();
     let problem = EikonalProblem {
-        grid,
+        grid: resolved.grid.clone(),
         cost,
         sources,
     };
@@ -544,7 +673,7 @@ pub fn stop_name(stop: StopReason) -> &'static str {
     }
 }
 
-fn grid_error(e: GridError, shape: &[usize]) -> OpError {
+pub(crate) fn grid_error(e: GridError, shape: &[usize]) -> OpError {
     match e {
         GridError::Spacing { axis, .. } => {
             OpError::invalid(format!("spacing[{axis}]"), e.to_string())
@@ -568,7 +697,7 @@ fn metric_error(e: MetricError, from_dataset: bool) -> OpError {
     OpError::invalid(field, e.to_string())
 }
 
-fn eikonal_error(e: EikonalError) -> OpError {
+pub(crate) fn eikonal_error(e: EikonalError) -> OpError {
     match e {
         EikonalError::Cancelled => OpError::Cancelled,
         EikonalError::Source { index, reason } => {

@@ -142,6 +142,7 @@ impl Operation for GridOffsetRequest {
                         constant: Some(1.0),
                         shape: Some(grid.shape().to_vec()),
                         interpretation: InterpretationSpec::Cost,
+                        design: None,
                     },
                 };
                 let off = 3 - grid.ndim();

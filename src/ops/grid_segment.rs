@@ -15,15 +15,16 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::grid_distance::{
-    self, ConnectivitySpec, CostSpec, GridDistanceRequest, MethodSpec, OutputSpec, SourceSpec,
-    StopSpec,
+    eikonal_error, resolve_cost, ConnectivitySpec, CostSpec, GridDistanceRequest, MethodSpec,
+    OutputSpec, SourceSpec, StopSpec,
 };
 use super::grid_inputs::{check_non_negative, check_point, check_spacing, fetch, shaped};
 use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::contours;
+use crate::numerics::eikonal::{EikonalOptions, EikonalProblem, Order, Source, StopRules};
 use crate::numerics::segmentation::voronoi;
-use crate::numerics::{Control, Grid};
+use crate::numerics::{self, Control};
 
 /// Most distinct labels in one request (one eikonal solve each).
 pub const MAX_LABELS: usize = 256;
@@ -159,24 +160,6 @@ pub fn cost_shape(
     }
 }
 
-/// The spacing a distance request on this cost would use.
-pub fn cost_spacing(
-    cost: &CostSpec,
-    spacing: &Option<Vec<f64>>,
-    inputs: &dyn Inputs,
-    ndim: usize,
-) -> Vec<f64> {
-    spacing
-        .clone()
-        .or_else(|| {
-            cost.dataset
-                .as_ref()
-                .and_then(|id| inputs.get(id))
-                .and_then(|i| i.spacing)
-        })
-        .unwrap_or_else(|| vec![1.0; ndim])
-}
-
 /// A `grid.distance` request from cell or point sources on the given metric.
 pub fn distance_request(
     cost: &CostSpec,
@@ -309,21 +292,34 @@ impl Operation for GridSegmentRequest {
     ) -> Result<OpOutput, OpError> {
         self.check(limits)?;
         let started = Instant::now();
-        let shape = cost_shape(&self.cost, inputs, "cost")?;
-        super::grid_inputs::check_shape(&shape, "cost", limits)?;
+        // The metric is built once (design included) and shared by every label's solve.
+        let resolved = resolve_cost(
+            &self.cost,
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+            inputs,
+            limits,
+            control,
+        )?;
+        let grid = resolved.grid.clone();
+        let shape = grid.shape().to_vec();
         let ndim = shape.len();
+        let cost = resolved.isotropic()?;
         // Sources per label, with the field each one came from.
-        let mut per_label: BTreeMap<i32, (Vec<SourceSpec>, Vec<String>)> = BTreeMap::new();
+        let mut per_label: BTreeMap<i32, (Vec<Source>, Vec<String>)> = BTreeMap::new();
         for (i, s) in self.seeds.iter().enumerate() {
-            if let Some(p) = &s.point {
-                check_point(p, &format!("seeds[{i}].point"), Some(ndim))?;
-            }
             let e = per_label.entry(s.label).or_default();
-            e.0.push(SourceSpec {
-                point: s.point.clone(),
-                cells: s.cells.clone(),
-                values: None,
-            });
+            match (&s.point, &s.cells) {
+                (Some(p), _) => {
+                    check_point(p, &format!("seeds[{i}].point"), Some(ndim))?;
+                    e.0.push(Source::Point(p.clone()));
+                }
+                (None, Some(c)) => e.0.push(Source::Cells {
+                    cells: c.clone(),
+                    values: None,
+                }),
+                (None, None) => return Err(OpError::invalid(format!("seeds[{i}]"), "no seed")),
+            }
             e.1.push(format!("seeds[{i}]"));
         }
         if let Some(id) = &self.seed_image {
@@ -339,7 +335,6 @@ impl Operation for GridSegmentRequest {
                 ));
             }
             let mut cells: BTreeMap<i32, Vec<Vec<usize>>> = BTreeMap::new();
-            let grid = Grid::unit(&shape).map_err(|e| OpError::invalid("cost", e.to_string()))?;
             for c in 0..img.array.len() {
                 let v = img.array.get_f64(c).unwrap_or(0.0);
                 if v == 0.0 || v.is_nan() {
@@ -359,9 +354,8 @@ impl Operation for GridSegmentRequest {
             }
             for (label, cells) in cells {
                 let e = per_label.entry(label).or_default();
-                e.0.push(SourceSpec {
-                    point: None,
-                    cells: Some(cells),
+                e.0.push(Source::Cells {
+                    cells,
                     values: None,
                 });
                 e.1.push("seed_image".into());
@@ -376,37 +370,41 @@ impl Operation for GridSegmentRequest {
                 reason: format!("{} labels, more than {MAX_LABELS}", per_label.len()),
             });
         }
-        let ids = self.dataset_ids();
-        let shared = preload(inputs, &ids)?;
-        let jobs: Vec<(i32, Vec<SourceSpec>, Vec<String>, usize)> = per_label
+        let jobs: Vec<(i32, Vec<Source>, Vec<String>, usize)> = per_label
             .into_iter()
             .map(|(l, (s, o))| {
                 let n = s.len();
                 (l, s, o, n)
             })
             .collect();
+        let options = EikonalOptions::DEFAULT
+            .with_order(if self.order == 1 {
+                Order::First
+            } else {
+                Order::Second
+            })
+            .with_stop(StopRules {
+                targets: Vec::new(),
+                max_distance: self.max_distance,
+                max_frozen: None,
+            });
         let maps: Vec<Vec<f64>> = jobs
             .par_iter()
             .map(|(_, sources, origin, _)| {
-                let req = distance_request(
-                    &self.cost,
-                    &self.spacing,
-                    &self.obstacles,
-                    sources.clone(),
-                    self.order,
-                    self.max_distance,
-                );
-                grid_distance::execute(&req, &shared, limits, control)
+                let problem = EikonalProblem {
+                    grid: grid.clone(),
+                    cost: cost.clone(),
+                    sources: sources.clone(),
+                };
+                numerics::solve(&problem, &options, control)
                     .map(|r| r.distance.into_iter().collect())
-                    .map_err(|e| rename_source_field(e, origin))
+                    .map_err(|e| rename_source_field(eikonal_error(e), origin))
             })
             .collect::<Result<_, _>>()?;
         let label_ids: Vec<i32> = jobs.iter().map(|j| j.0).collect();
         let v = voronoi(&maps, &label_ids);
         drop(maps);
-        let spacing = cost_spacing(&self.cost, &self.spacing, inputs, ndim);
-        let grid =
-            Grid::new(&shape, &spacing).map_err(|e| OpError::invalid("spacing", e.to_string()))?;
+        let spacing = resolved.spacing.clone();
         let mut stats: Vec<serde_json::Value> = Vec::new();
         for (label, _, _, seeds) in &jobs {
             let cells = v.labels.iter().filter(|&&l| l == *label).count();

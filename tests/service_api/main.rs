@@ -6,4 +6,5 @@ mod errors;
 mod flow;
 mod load;
 mod openapi;
+mod paths;
 mod segment;

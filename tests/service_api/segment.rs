@@ -22,7 +22,10 @@ async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Re
 }
 
 async fn npy_f64(app: &TestApp, reference: &serde_json::Value) -> Vec<f64> {
-    let url = format!("{}?format=npy", reference["data_url"].as_str().expect("data_url"));
+    let url = format!(
+        "{}?format=npy",
+        reference["data_url"].as_str().expect("data_url")
+    );
     let bytes = app.get(&url).await.bytes().await.expect("bytes");
     match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
         .expect("decode")
@@ -69,7 +72,12 @@ async fn edt_refusals_name_the_field() {
     .await;
     assert_eq!(v["field"], "mask");
     let v = problem(
-        post(&app, "/v1/grid/edt", json!({"mask": id, "spacing": [1.0, -1.0]})).await,
+        post(
+            &app,
+            "/v1/grid/edt",
+            json!({"mask": id, "spacing": [1.0, -1.0]}),
+        )
+        .await,
         422,
     )
     .await;
@@ -109,7 +117,10 @@ async fn segment_returns_labels_confidence_and_contours() {
     let conf = npy_f64(&app, &body["confidence"]).await;
     assert!(conf[5 * 32 + 5] > 20.0 && conf[16 * 32 + 16] < 1.0);
     // The label map renders as a colour PNG through the datasets endpoint.
-    let url = format!("{}?format=png", body["labels"]["data_url"].as_str().expect("url"));
+    let url = format!(
+        "{}?format=png",
+        body["labels"]["data_url"].as_str().expect("url")
+    );
     let res = app.get(&url).await;
     assert_eq!(res.status(), 200);
     let bytes = res.bytes().await.expect("png");
@@ -155,7 +166,9 @@ async fn segment_returns_labels_confidence_and_contours() {
 async fn skeleton_offset_and_plan_over_http() {
     let app = spawn(|_| {}).await;
     let rect = app
-        .upload(&mask(40, |i, j| (8..32).contains(&i) && (4..36).contains(&j)))
+        .upload(&mask(40, |i, j| {
+            (8..32).contains(&i) && (4..36).contains(&j)
+        }))
         .await;
     let res = post(&app, "/v1/grid/skeleton", json!({"mask": rect})).await;
     assert_eq!(res.status(), 200);
@@ -169,7 +182,12 @@ async fn skeleton_offset_and_plan_over_http() {
         .count();
     assert_eq!(ends, 4, "{}", body["graph"]);
     let v = problem(
-        post(&app, "/v1/grid/skeleton", json!({"mask": rect, "min_boundary_fraction": -0.1})).await,
+        post(
+            &app,
+            "/v1/grid/skeleton",
+            json!({"mask": rect, "min_boundary_fraction": -0.1}),
+        )
+        .await,
         422,
     )
     .await;
@@ -180,13 +198,26 @@ async fn skeleton_offset_and_plan_over_http() {
             ((i as f64 - 40.0).powi(2) + (j as f64 - 40.0).powi(2)).sqrt() <= 15.0
         }))
         .await;
-    let res = post(&app, "/v1/grid/offset", json!({"mask": disc, "radius": 10.0})).await;
+    let res = post(
+        &app,
+        "/v1/grid/offset",
+        json!({"mask": disc, "radius": 10.0}),
+    )
+    .await;
     assert_eq!(res.status(), 200);
     let body: serde_json::Value = res.json().await.expect("json");
     let after = body["stats"]["cells_after"].as_f64().expect("cells");
-    assert!((after / (std::f64::consts::PI * 625.0) - 1.0).abs() < 0.01, "{after}");
+    assert!(
+        (after / (std::f64::consts::PI * 625.0) - 1.0).abs() < 0.01,
+        "{after}"
+    );
     let v = problem(
-        post(&app, "/v1/grid/offset", json!({"mask": disc, "radius": -1.0})).await,
+        post(
+            &app,
+            "/v1/grid/offset",
+            json!({"mask": disc, "radius": -1.0}),
+        )
+        .await,
         422,
     )
     .await;
@@ -207,7 +238,10 @@ async fn skeleton_offset_and_plan_over_http() {
     )
     .await;
     assert_eq!(v["field"], "radius");
-    assert!(v["detail"].as_str().expect("detail").contains("no collision-free path"));
+    assert!(v["detail"]
+        .as_str()
+        .expect("detail")
+        .contains("no collision-free path"));
     let res = post(
         &app,
         "/v1/grid/plan",

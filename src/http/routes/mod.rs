@@ -4,10 +4,14 @@
 //! * [`datasets`]: `/v1/datasets` upload, metadata, data, delete.
 //! * [`grid`]: `POST /v1/grid/distance`.
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan}`.
+//! * [`metric`]: `POST /v1/grid/metric`.
+//! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 
 pub mod datasets;
 pub mod docs;
 pub mod grid;
 pub mod health;
+pub mod metric;
+pub mod paths;
 pub mod segment;

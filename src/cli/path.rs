@@ -1,0 +1,276 @@
+//! `geodex path`: minimal paths from the command line. The flags of
+//! `geodex distance` (the metric, the sources, the scheme) plus `--to`
+//! (repeatable end points) and `--out PATHS.json`.
+//!
+//! The command builds a [`GridPathsRequest`], the schema of `POST
+//! /v1/grid/paths` and of the job queue, and runs it with
+//! [`grid_paths::execute`] (without a cache).
+//!
+//! ```text
+//! geodex path --cost W.npy --source 10,20 --to 200,31.5 --to 90,90 --out paths.json
+//! geodex path --cost road.png --design '{"kind": "intensity", "at": [10, 20]}' \
+//!     --source 10,20 --to 200,31.5 --format svg --out road.svg
+//! geodex path --cost img.png --design '{"kind": "edges"}' --contour 10,10 --contour 10,90 \
+//!     --contour 80,50 --out contour.json
+//! ```
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use clap::{ArgGroup, Args, ValueEnum};
+
+use super::distance::{
+    flag, op_error, parse_points, read_array, ConnectivityArg, DistanceError, MethodArg,
+};
+use crate::numerics::grid::MAX_CELLS;
+use crate::numerics::Control;
+use crate::ops::grid_distance::{
+    ConnectivitySpec, CostSpec, InterpretationSpec, MethodSpec, SourceSpec,
+};
+use crate::ops::grid_metric::DesignSpec;
+use crate::ops::grid_paths::{self, GridPathsRequest, PathFormat};
+use crate::ops::{InputArray, OpLimits};
+
+/// Flags of `geodex path`.
+#[derive(Debug, Clone, Args)]
+#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape"])))]
+pub struct PathArgs {
+    /// Cost per unit length W (or a speed with --speed, or an image with
+    /// --design): a 2D or 3D array (NPY, PNG, TIFF, NIfTI...). +inf marks a wall.
+    #[arg(long, value_name = "COST.npy")]
+    pub cost: Option<PathBuf>,
+    /// Grid shape for a unit cost, instead of --cost.
+    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    pub shape: Option<Vec<usize>>,
+    /// Build W from the --cost image: the JSON of a design section, e.g.
+    /// '{"kind": "vesselness", "scales": [1, 2], "polarity": "dark"}'.
+    #[arg(long, value_name = "JSON")]
+    pub design: Option<String>,
+    /// A point source (index coordinates, axis 0 first); repeatable.
+    #[arg(long = "source", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub sources: Vec<String>,
+    /// An end point: one path from it to the nearest source; repeatable.
+    #[arg(long = "to", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub to: Vec<String>,
+    /// A way-point (instead of --source/--to): the path through them in order; repeatable.
+    #[arg(long = "waypoint", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub waypoints: Vec<String>,
+    /// A point of a closed contour (instead of --source/--to); repeatable, at least 3.
+    #[arg(long = "contour", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub contour: Vec<String>,
+    /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// The solver.
+    #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
+    pub method: MethodArg,
+    /// Order of the finite-difference scheme.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub order: u8,
+    /// Turn off source factoring around point sources.
+    #[arg(long)]
+    pub no_factoring: bool,
+    /// Graph neighbourhood of --method dijkstra.
+    #[arg(long, value_enum, default_value_t = ConnectivityArg::Diagonal)]
+    pub connectivity: ConnectivityArg,
+    /// Read the values of --cost as a speed F = 1/W (0 marks a wall).
+    #[arg(long)]
+    pub speed: bool,
+    /// A mask of the grid's shape whose non-zero cells are obstacles.
+    #[arg(long, value_name = "MASK.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Compute the whole distance map instead of stopping at the end points.
+    #[arg(long)]
+    pub no_early_stop: bool,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = FormatArg::Json)]
+    pub format: FormatArg,
+    /// Where to write the paths (JSON, GeoJSON or SVG).
+    #[arg(long, value_name = "PATHS.json")]
+    pub out: PathBuf,
+}
+
+/// `--format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// The paths as JSON (index and world coordinates, lengths, statistics).
+    Json,
+    /// A GeoJSON FeatureCollection of LineStrings (2D).
+    Geojson,
+    /// An SVG of the paths over the image (2D).
+    Svg,
+}
+
+/// The flag behind a field of [`GridPathsRequest`].
+fn path_flag(field: &str, cost_flag: &str) -> Option<String> {
+    let indexed = |prefix: &str| -> Option<usize> {
+        let rest = field.strip_prefix(prefix)?;
+        rest[..rest.find(']')?].parse().ok()
+    };
+    if let Some(i) = indexed("ends[") {
+        return Some(format!("--to {}", i + 1));
+    }
+    if let Some(i) = indexed("waypoints[") {
+        return Some(format!("--waypoint {}", i + 1));
+    }
+    if let Some(i) = indexed("contour[") {
+        return Some(format!("--contour {}", i + 1));
+    }
+    match field {
+        "ends" => Some("--to".into()),
+        "waypoints" => Some("--waypoint".into()),
+        "contour" => Some("--contour".into()),
+        "format" => Some("--format".into()),
+        f if f.starts_with("cost.design") => Some("--design".into()),
+        f if f.starts_with("cost.dataset") => Some(cost_flag.into()),
+        _ => None,
+    }
+}
+
+/// Runs `geodex path`.
+pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
+    let sources = parse_points("--source", &args.sources)?;
+    let ends = parse_points("--to", &args.to)?;
+    let waypoints = parse_points("--waypoint", &args.waypoints)?;
+    let contour = parse_points("--contour", &args.contour)?;
+    let design: Option<DesignSpec> = match &args.design {
+        Some(json) => Some(
+            serde_json::from_str(json)
+                .map_err(|e| flag("--design", format!("not a design section: {e}")))?,
+        ),
+        None => None,
+    };
+    if design.is_some() && args.cost.is_none() {
+        return Err(flag("--design", "needs the image in --cost"));
+    }
+    let cost_flag = if args.cost.is_some() {
+        "--cost"
+    } else {
+        "--shape"
+    };
+    let mut inputs: HashMap<String, InputArray> = HashMap::new();
+    if let Some(path) = &args.cost {
+        let decoded = read_array("--cost", path)?;
+        inputs.insert(
+            "cost".into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: decoded.spacing,
+            },
+        );
+    }
+    if let Some(path) = &args.obstacles {
+        let decoded = read_array("--obstacles", path)?;
+        inputs.insert(
+            "obstacles".into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: None,
+            },
+        );
+    }
+    let request = GridPathsRequest {
+        cost: CostSpec {
+            dataset: args.cost.as_ref().map(|_| "cost".to_string()),
+            constant: args.shape.as_ref().map(|_| 1.0),
+            shape: args.shape.clone(),
+            interpretation: if args.speed {
+                InterpretationSpec::Speed
+            } else {
+                InterpretationSpec::Cost
+            },
+            design,
+        },
+        spacing: args.spacing.clone(),
+        obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
+        sources: sources
+            .into_iter()
+            .map(|p| SourceSpec {
+                point: Some(p),
+                cells: None,
+                values: None,
+            })
+            .collect(),
+        ends,
+        waypoints,
+        contour,
+        method: match args.method {
+            MethodArg::FastMarching => MethodSpec::FastMarching,
+            MethodArg::FastSweeping => MethodSpec::FastSweeping,
+            MethodArg::Dijkstra => MethodSpec::Dijkstra,
+        },
+        order: args.order,
+        connectivity: match args.connectivity {
+            ConnectivityArg::Axial => ConnectivitySpec::Axial,
+            ConnectivityArg::Diagonal => ConnectivitySpec::Diagonal,
+            ConnectivityArg::Extended => ConnectivitySpec::Extended,
+        },
+        factoring: !args.no_factoring,
+        early_stop: !args.no_early_stop,
+        step: 0.5,
+        format: match args.format {
+            FormatArg::Json => PathFormat::Json,
+            FormatArg::Geojson => PathFormat::Geojson,
+            FormatArg::Svg => PathFormat::Svg,
+        },
+    };
+    let limits = OpLimits {
+        max_cells: MAX_CELLS,
+        max_sources: usize::MAX,
+    };
+    let result = grid_paths::execute(&request, &inputs, &limits, &Control::new(), None, None)
+        .map_err(|e| {
+            let mapped = e.field().and_then(|f| path_flag(f, cost_flag));
+            match (mapped, op_error(e, cost_flag)) {
+                (Some(f), DistanceError::Flag { reason, .. }) => flag(f, reason),
+                (_, other) => other,
+            }
+        })?;
+    let body = match args.format {
+        FormatArg::Json => serde_json::to_string_pretty(&result.document())
+            .map_err(|e| flag("--out", e.to_string()))?,
+        FormatArg::Geojson => result.geojson.clone().unwrap_or_default().to_string(),
+        FormatArg::Svg => result.svg.clone().unwrap_or_default(),
+    };
+    std::fs::write(&args.out, body).map_err(|e| {
+        flag(
+            "--out",
+            format!("cannot write '{}': {e}", args.out.display()),
+        )
+    })?;
+    for p in &result.paths {
+        println!(
+            "geodex: path {} to source {}: {} vertices, geodesic length {:.6}, euclidean length {:.6}",
+            p.index,
+            p.source,
+            p.points.len(),
+            p.geodesic_length,
+            p.euclidean_length
+        );
+    }
+    println!("geodex: wrote {}", args.out.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn request_fields_map_to_path_flags() {
+        assert_eq!(path_flag("ends[1]", "--cost").unwrap(), "--to 2");
+        assert_eq!(path_flag("waypoints[0]", "--cost").unwrap(), "--waypoint 1");
+        assert_eq!(path_flag("contour[2]", "--cost").unwrap(), "--contour 3");
+        assert_eq!(
+            path_flag("cost.design.scales[0]", "--cost").unwrap(),
+            "--design"
+        );
+        assert!(path_flag("sources[0]", "--cost").is_none());
+    }
+}
