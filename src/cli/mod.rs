@@ -11,6 +11,7 @@ use crate::config::ServeArgs;
 pub mod bench;
 pub mod distance;
 pub mod path;
+pub mod segment;
 mod usage;
 
 /// geodex: geodesic distances, minimal paths and segmentations.
@@ -39,6 +40,16 @@ pub enum Command {
     Distance(distance::DistanceArgs),
     /// Time the solvers on fixed problems (see `geodex bench --help`).
     Bench(bench::BenchArgs),
+    /// Exact Euclidean distance transform of a mask (binary, signed or multi-label).
+    Edt(segment::EdtArgs),
+    /// Seeded segmentation (geodesic Voronoi cells of labelled seeds).
+    Segment(segment::SegmentArgs),
+    /// Medial axis of a shape, with pruning.
+    Skeleton(segment::SkeletonArgs),
+    /// Dilate or erode a shape by a Euclidean or geodesic distance.
+    Offset(segment::OffsetArgs),
+    /// Collision-free path of a disc robot among obstacles.
+    Plan(segment::PlanArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 }
@@ -50,6 +61,11 @@ pub fn main() -> ExitCode {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
+        Some(Command::Edt(args)) => segment::run_edt(&args).map_err(Into::into),
+        Some(Command::Segment(args)) => segment::run_segment(&args).map_err(Into::into),
+        Some(Command::Skeleton(args)) => segment::run_skeleton(&args).map_err(Into::into),
+        Some(Command::Offset(args)) => segment::run_offset(&args).map_err(Into::into),
+        Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
         None => crate::app::serve(cli.serve),
     };

@@ -21,10 +21,17 @@
 //! * [`exact`]: closed-form geodesic distances used as test oracles and in benchmarks.
 //! * [`filters`]: Gaussian smoothing, gradients and Hessians (metric design).
 //! * [`mesh`]: triangle meshes and their topology (surface solvers).
+//! * [`edt`]: exact Euclidean distance transforms (binary, signed, multi-label, feature transform).
+//! * [`contours`]: region boundaries of 2D label images as polygons with holes.
+//! * [`skeleton`]: medial axis with pruning, 2D skeleton graphs.
+//! * [`segmentation`]: geodesic Voronoi segmentation, Dice, Euclidean offsets.
+//! * [`planning`]: motion planning for a disc robot (clearance, widest robot, safe paths).
 //! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 
+pub mod contours;
 pub mod control;
+pub mod edt;
 pub mod eikonal;
 pub mod exact;
 pub mod filters;
@@ -34,6 +41,9 @@ pub mod mesh;
 pub mod metric;
 pub mod metric_design;
 pub mod paths;
+pub mod planning;
+pub mod segmentation;
+pub mod skeleton;
 
 pub use control::Control;
 pub use eikonal::{

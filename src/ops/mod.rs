@@ -5,12 +5,20 @@
 //! Nothing here does IO: input datasets are handed in through [`Inputs`].
 //!
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
+//! * [`grid_edt`], [`grid_segment`], [`grid_skeleton`], [`grid_offset`], [`grid_plan`]: exact distance
+//!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 
 pub mod grid_distance;
+pub mod grid_edt;
+pub mod grid_inputs;
 pub mod grid_metric;
+pub mod grid_offset;
 pub mod grid_paths;
+pub mod grid_plan;
+pub mod grid_segment;
+pub mod grid_skeleton;
 
 use std::sync::Arc;
 

@@ -7,3 +7,4 @@ mod flow;
 mod load;
 mod openapi;
 mod paths;
+mod segment;

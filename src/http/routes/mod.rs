@@ -3,6 +3,7 @@
 //! * [`health`]: `/healthz`, `/readyz`, `/metrics`.
 //! * [`datasets`]: `/v1/datasets` upload, metadata, data, delete.
 //! * [`grid`]: `POST /v1/grid/distance`.
+//! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
@@ -13,3 +14,4 @@ pub mod grid;
 pub mod health;
 pub mod metric;
 pub mod paths;
+pub mod segment;

@@ -1,0 +1,555 @@
+//! `geodex edt`, `segment`, `skeleton`, `offset` and `plan`: the segmentation
+//! operations on NPY files (or any format geodex reads) for batch users.
+//!
+//! Each command builds the request struct the HTTP service uses
+//! (`ops::grid_*`) and runs it with [`Operation::run`], so both accept and
+//! refuse the same inputs. Errors are one line naming the flag at fault.
+//!
+//! ```text
+//! geodex edt --mask M.npy --spacing 1,0.5 --signed --out D.npy --features F.npy
+//! geodex segment --cost W.npy --seed 1:40,40 --seed 2:200,180 --out L.npy --contours L.geojson
+//! geodex skeleton --mask M.npy --out S.npy --graph G.json
+//! geodex offset --mask M.npy --radius 5 --out O.npy
+//! geodex plan --obstacles O.npy --radius 3 --start 10,5 --goal 50,55 --out path.json
+//! ```
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use clap::Args;
+
+use crate::io::{self, ArrayData, Limits};
+use crate::numerics::grid::MAX_CELLS;
+use crate::numerics::Control;
+use crate::ops::grid_distance::{CostSpec, InterpretationSpec};
+use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
+use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
+use crate::ops::grid_plan::GridPlanRequest;
+use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
+use crate::ops::grid_skeleton::GridSkeletonRequest;
+use crate::ops::{InputArray, OpError, OpLimits, OpOutput, Operation};
+
+/// A command-line mistake or a refused request, naming the flag.
+#[derive(Debug, thiserror::Error)]
+pub enum SegmentCliError {
+    /// A flag's value is wrong.
+    #[error("{flag}: {reason}")]
+    Flag {
+        /// The flag.
+        flag: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
+    SegmentCliError::Flag {
+        flag: name.into(),
+        reason: reason.into(),
+    }
+}
+
+/// Flags of `geodex edt`.
+#[derive(Debug, Clone, Args)]
+pub struct EdtArgs {
+    /// The mask: 2D or 3D, boolean or numbers (non-zero cells are the features).
+    #[arg(long, value_name = "M.npy")]
+    pub mask: PathBuf,
+    /// Physical size of a cell along each axis. Default: 1 (or the NIfTI voxel size).
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Signed distance: negative inside the mask.
+    #[arg(long, conflicts_with = "multilabel")]
+    pub signed: bool,
+    /// Read --mask as labels: distance to the nearest cell of another value.
+    #[arg(long)]
+    pub multilabel: bool,
+    /// Threads (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Where to write the distance (f64 NPY).
+    #[arg(long, value_name = "D.npy")]
+    pub out: PathBuf,
+    /// Where to write the feature transform (int64 NPY: C-order linear index
+    /// of the nearest feature cell, -1 if none).
+    #[arg(long, value_name = "F.npy")]
+    pub features: Option<PathBuf>,
+}
+
+/// Flags of `geodex segment`.
+#[derive(Debug, Clone, Args)]
+pub struct SegmentArgs {
+    /// The metric W (cost per unit length), as in `geodex distance`.
+    #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
+    pub cost: Option<PathBuf>,
+    /// Grid shape for a unit cost, instead of --cost.
+    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    pub shape: Option<Vec<usize>>,
+    /// A labelled seed point `LABEL:I,J[,K]`; repeat.
+    #[arg(long = "seed", value_name = "LABEL:I,J[,K]")]
+    pub seeds: Vec<String>,
+    /// A label image of scribbles (non-zero integers are seeds of that label).
+    #[arg(long, value_name = "S.npy")]
+    pub seed_image: Option<PathBuf>,
+    /// Obstacle mask.
+    #[arg(long, value_name = "O.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Geodesic ball radius (cells beyond get label -1).
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
+    /// Physical size of a cell along each axis.
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Where to write the labels (int32 NPY).
+    #[arg(long, value_name = "L.npy")]
+    pub out: PathBuf,
+    /// Where to write the distance to the nearest seed.
+    #[arg(long, value_name = "U.npy")]
+    pub distance: Option<PathBuf>,
+    /// Where to write the confidence (second distance minus distance).
+    #[arg(long, value_name = "C.npy")]
+    pub confidence: Option<PathBuf>,
+    /// Where to write the label contours (GeoJSON, 2D).
+    #[arg(long, value_name = "L.geojson")]
+    pub contours: Option<PathBuf>,
+}
+
+/// Flags of `geodex skeleton`.
+#[derive(Debug, Clone, Args)]
+pub struct SkeletonArgs {
+    /// The shape mask.
+    #[arg(long, value_name = "M.npy")]
+    pub mask: PathBuf,
+    /// Physical size of a cell along each axis.
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Smallest boundary length between the two nearest boundary points of a branch.
+    #[arg(long, default_value_t = 0.0, value_name = "L")]
+    pub min_boundary_length: f64,
+    /// The same as a fraction of the boundary length (2D) or inscribed diameter (3D).
+    #[arg(long, default_value_t = 0.08, value_name = "F")]
+    pub min_boundary_fraction: f64,
+    /// Where to write the skeleton (uint8 NPY).
+    #[arg(long, value_name = "S.npy")]
+    pub out: PathBuf,
+    /// Where to write the radius function (f64 NPY).
+    #[arg(long, value_name = "R.npy")]
+    pub radius: Option<PathBuf>,
+    /// Where to write the skeleton graph (JSON, 2D).
+    #[arg(long, value_name = "G.json")]
+    pub graph: Option<PathBuf>,
+}
+
+/// Flags of `geodex offset`.
+#[derive(Debug, Clone, Args)]
+pub struct OffsetArgs {
+    /// The shape mask.
+    #[arg(long, value_name = "M.npy")]
+    pub mask: PathBuf,
+    /// Offset distance (physical units).
+    #[arg(long, value_name = "R")]
+    pub radius: f64,
+    /// Erode instead of dilate.
+    #[arg(long)]
+    pub erode: bool,
+    /// Geodesic distance of --cost (default unit cost) instead of Euclidean.
+    #[arg(long)]
+    pub geodesic: bool,
+    /// The metric of --geodesic.
+    #[arg(long, value_name = "W.npy", requires = "geodesic")]
+    pub cost: Option<PathBuf>,
+    /// Obstacle mask (blocks the propagation).
+    #[arg(long, value_name = "O.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Physical size of a cell along each axis.
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Where to write the offset shape (uint8 NPY).
+    #[arg(long, value_name = "O.npy")]
+    pub out: PathBuf,
+}
+
+/// Flags of `geodex plan`.
+#[derive(Debug, Clone, Args)]
+pub struct PlanArgs {
+    /// Obstacle mask.
+    #[arg(long, value_name = "O.npy")]
+    pub obstacles: PathBuf,
+    /// Robot radius (physical units).
+    #[arg(long, value_name = "R")]
+    pub radius: f64,
+    /// Start cell `I,J[,K]`.
+    #[arg(
+        long,
+        value_name = "I,J[,K]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub start: Vec<f64>,
+    /// Goal cell `I,J[,K]`.
+    #[arg(
+        long,
+        value_name = "I,J[,K]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub goal: Vec<f64>,
+    /// Physical size of a cell along each axis.
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Where to write the answer (JSON); stdout when omitted.
+    #[arg(long, value_name = "PATH.json")]
+    pub out: Option<PathBuf>,
+}
+
+fn read(
+    name: &str,
+    path: &Path,
+    inputs: &mut HashMap<String, InputArray>,
+) -> Result<String, SegmentCliError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| flag(name, format!("cannot read '{}': {e}", path.display())))?;
+    let limits = Limits {
+        max_cells: MAX_CELLS,
+        max_bytes: usize::MAX,
+    };
+    let d = io::decode(&bytes, None, &limits)
+        .map_err(|e| flag(name, format!("'{}': {e}", path.display())))?;
+    let id = name.trim_start_matches('-').to_string();
+    inputs.insert(
+        id.clone(),
+        InputArray {
+            array: Arc::new(d.array),
+            spacing: d.spacing,
+        },
+    );
+    Ok(id)
+}
+
+fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
+    let bytes = io::encode_npy(array).map_err(|e| flag(name, e.to_string()))?;
+    std::fs::write(path, bytes)
+        .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
+}
+
+fn write_json(name: &str, path: &Path, v: &serde_json::Value) -> Result<(), SegmentCliError> {
+    let s = serde_json::to_string(v).map_err(|e| flag(name, e.to_string()))?;
+    std::fs::write(path, s)
+        .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
+}
+
+/// The flag behind a request field (`seeds[2]` -> `--seed 3`).
+fn flag_of(field: &str) -> String {
+    if let Some(rest) = field.strip_prefix("seeds[") {
+        if let Some(k) = rest.split(']').next().and_then(|k| k.parse::<usize>().ok()) {
+            return format!("--seed {}", k + 1);
+        }
+    }
+    let root = field.split(['.', '[']).next().unwrap_or(field);
+    match root {
+        "mask" => "--mask".into(),
+        "spacing" => "--spacing".into(),
+        "cost" => "--cost".into(),
+        "seed_image" => "--seed-image".into(),
+        "obstacles" => "--obstacles".into(),
+        "max_distance" => "--max-distance".into(),
+        "radius" => "--radius".into(),
+        "start" => "--start".into(),
+        "goal" => "--goal".into(),
+        "min_boundary_length" => "--min-boundary-length".into(),
+        "min_boundary_fraction" => "--min-boundary-fraction".into(),
+        other => other.replace('_', "-"),
+    }
+}
+
+fn execute<O: Operation>(
+    request: &O,
+    inputs: &HashMap<String, InputArray>,
+    threads: Option<usize>,
+) -> Result<(OpOutput, f64), SegmentCliError> {
+    let limits = OpLimits {
+        max_cells: MAX_CELLS,
+        max_sources: usize::MAX,
+    };
+    let go = || {
+        let started = Instant::now();
+        let out = request.run(inputs, &limits, &Control::new());
+        (out, started.elapsed().as_secs_f64())
+    };
+    let (out, secs) = match threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build()
+            .map_err(|e| flag("--threads", e.to_string()))?
+            .install(go),
+        None => go(),
+    };
+    let out = out.map_err(|e| match e {
+        OpError::Cancelled => flag("geodex", "cancelled"),
+        e => {
+            let reason = match &e {
+                OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => {
+                    reason.clone()
+                }
+                OpError::UnknownDataset { id, .. } => format!("'{id}' not found"),
+                OpError::Cancelled => String::new(),
+            };
+            flag(flag_of(e.field().unwrap_or_default()), reason)
+        }
+    })?;
+    Ok((out, secs))
+}
+
+fn array<'a>(out: &'a OpOutput, name: &str) -> Option<&'a ArrayData> {
+    out.arrays.iter().find(|a| a.name == name).map(|a| &a.array)
+}
+
+fn save(
+    out: &OpOutput,
+    name: &str,
+    flag_name: &str,
+    path: &Option<PathBuf>,
+) -> Result<(), SegmentCliError> {
+    if let (Some(p), Some(a)) = (path, array(out, name)) {
+        write(flag_name, p, a)?;
+    }
+    Ok(())
+}
+
+/// `geodex edt`.
+pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let id = read("--mask", &args.mask, &mut inputs)?;
+    let request = GridEdtRequest {
+        mask: id,
+        spacing: args.spacing.clone(),
+        mode: if args.signed {
+            EdtMode::Signed
+        } else if args.multilabel {
+            EdtMode::Multilabel
+        } else {
+            EdtMode::Binary
+        },
+        features: args.features.is_some(),
+    };
+    let (out, secs) = execute(&request, &inputs, args.threads)?;
+    save(&out, "distance", "--out", &Some(args.out.clone()))?;
+    save(&out, "features", "--features", &args.features)?;
+    let transform = out.document["stats"]["seconds"].as_f64().unwrap_or(secs);
+    println!(
+        "geodex: wrote {} (transform {:.3} s, total {:.3} s)",
+        args.out.display(),
+        transform,
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex segment`.
+pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let cost = match (&args.cost, &args.shape) {
+        (Some(p), _) => CostSpec {
+            dataset: Some(read("--cost", p, &mut inputs)?),
+            constant: None,
+            shape: None,
+            interpretation: InterpretationSpec::Cost,
+            design: None,
+        },
+        (None, Some(s)) => CostSpec {
+            dataset: None,
+            constant: Some(1.0),
+            shape: Some(s.clone()),
+            interpretation: InterpretationSpec::Cost,
+            design: None,
+        },
+        (None, None) => return Err(flag("--cost", "give --cost or --shape")),
+    };
+    let mut seeds = Vec::new();
+    for (i, s) in args.seeds.iter().enumerate() {
+        let bad = || {
+            flag(
+                format!("--seed {}", i + 1),
+                format!("'{s}' is not LABEL:I,J[,K]"),
+            )
+        };
+        let (label, point) = s.split_once(':').ok_or_else(bad)?;
+        let label: i32 = label.trim().parse().map_err(|_| bad())?;
+        let point: Vec<f64> = point
+            .split(',')
+            .map(|v| v.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| bad())?;
+        seeds.push(SeedSpec {
+            label,
+            point: Some(point),
+            cells: None,
+        });
+    }
+    let request = GridSegmentRequest {
+        cost,
+        spacing: args.spacing.clone(),
+        obstacles: match &args.obstacles {
+            Some(p) => Some(read("--obstacles", p, &mut inputs)?),
+            None => None,
+        },
+        seeds,
+        seed_image: match &args.seed_image {
+            Some(p) => Some(read("--seed-image", p, &mut inputs)?),
+            None => None,
+        },
+        max_distance: args.max_distance,
+        order: 2,
+        contours: args.contours.is_some(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    save(&out, "labels", "--out", &Some(args.out.clone()))?;
+    save(&out, "distance", "--distance", &args.distance)?;
+    save(&out, "confidence", "--confidence", &args.confidence)?;
+    if let (Some(p), Some(c)) = (&args.contours, out.document.get("contours")) {
+        write_json("--contours", p, c)?;
+    }
+    println!(
+        "geodex: wrote {} ({} labels, {:.3} s)",
+        args.out.display(),
+        out.document["labels"].as_array().map_or(0, Vec::len),
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex skeleton`.
+pub fn run_skeleton(args: &SkeletonArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let request = GridSkeletonRequest {
+        mask: read("--mask", &args.mask, &mut inputs)?,
+        spacing: args.spacing.clone(),
+        min_boundary_length: args.min_boundary_length,
+        min_boundary_fraction: args.min_boundary_fraction,
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    save(&out, "skeleton", "--out", &Some(args.out.clone()))?;
+    save(&out, "radius", "--radius", &args.radius)?;
+    if let (Some(p), Some(g)) = (&args.graph, out.document.get("graph")) {
+        write_json("--graph", p, g)?;
+    }
+    println!(
+        "geodex: wrote {} ({} skeleton cells, {:.3} s)",
+        args.out.display(),
+        out.document["stats"]["skeleton_cells"],
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex offset`.
+pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let request = GridOffsetRequest {
+        mask: read("--mask", &args.mask, &mut inputs)?,
+        radius: args.radius,
+        operation: if args.erode {
+            OffsetOperation::Erode
+        } else {
+            OffsetOperation::Dilate
+        },
+        metric: if args.geodesic {
+            OffsetMetric::Geodesic
+        } else {
+            OffsetMetric::Euclidean
+        },
+        cost: match &args.cost {
+            Some(p) => Some(CostSpec {
+                dataset: Some(read("--cost", p, &mut inputs)?),
+                constant: None,
+                shape: None,
+                interpretation: InterpretationSpec::Cost,
+                design: None,
+            }),
+            None => None,
+        },
+        obstacles: match &args.obstacles {
+            Some(p) => Some(read("--obstacles", p, &mut inputs)?),
+            None => None,
+        },
+        spacing: args.spacing.clone(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    save(&out, "offset", "--out", &Some(args.out.clone()))?;
+    println!(
+        "geodex: wrote {} ({} -> {} cells, {:.3} s)",
+        args.out.display(),
+        out.document["stats"]["cells_before"],
+        out.document["stats"]["cells_after"],
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex plan`.
+pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let request = GridPlanRequest {
+        obstacles: read("--obstacles", &args.obstacles, &mut inputs)?,
+        radius: args.radius,
+        start: args.start.clone(),
+        goal: args.goal.clone(),
+        spacing: args.spacing.clone(),
+    };
+    let (out, _) = execute(&request, &inputs, None)?;
+    match &args.out {
+        Some(p) => {
+            write_json("--out", p, &out.document)?;
+            println!(
+                "geodex: wrote {} (length {}, {} vertices)",
+                p.display(),
+                out.document["length"],
+                out.document["path"].as_array().map_or(0, Vec::len)
+            );
+        }
+        None => println!("{}", out.document),
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fields_map_to_flags() {
+        assert_eq!(flag_of("seeds[1].point[0]"), "--seed 2");
+        assert_eq!(flag_of("mask"), "--mask");
+        assert_eq!(flag_of("spacing[1]"), "--spacing");
+        assert_eq!(flag_of("cost.dataset"), "--cost");
+        assert_eq!(flag_of("radius"), "--radius");
+        assert_eq!(flag_of("min_boundary_fraction"), "--min-boundary-fraction");
+    }
+}

@@ -1,0 +1,269 @@
+//! Segmentation endpoints on grids: `POST /v1/grid/edt`, `/v1/grid/segment`,
+//! `/v1/grid/skeleton`, `/v1/grid/offset`, `/v1/grid/plan`. Each is the
+//! generic synchronous path ([`crate::http::operation`]) over one request
+//! struct of [`crate::ops`]; the answer is the operation's JSON document with
+//! one dataset reference per output array.
+
+use std::collections::HashMap;
+
+use axum::extract::State;
+use axum::Json;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::grid::DatasetRef;
+use crate::http::error::ApiError;
+use crate::http::extract::ApiJson;
+use crate::http::operation::{run_on_pool, store_output};
+use crate::http::AppState;
+use crate::ops::grid_edt::GridEdtRequest;
+use crate::ops::grid_offset::GridOffsetRequest;
+use crate::ops::grid_plan::GridPlanRequest;
+use crate::ops::grid_segment::GridSegmentRequest;
+use crate::ops::grid_skeleton::GridSkeletonRequest;
+use crate::ops::Operation;
+
+async fn run<O: Operation>(
+    state: &AppState,
+    request: O,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let (output, timing) = run_on_pool(state, request, HashMap::new()).await?;
+    let mut doc = store_output(state, output).await?;
+    if let Some(stats) = doc.get_mut("stats").and_then(|s| s.as_object_mut()) {
+        stats.insert("queue_seconds".into(), timing.queue_seconds.into());
+    }
+    Ok(Json(doc))
+}
+
+/// Answer of `POST /v1/grid/edt`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EdtResponse {
+    /// The distance (f64; signed: negative inside; +inf where there is no feature).
+    pub distance: DatasetRef,
+    /// Linear index of the nearest feature cell (int64, -1 if none), when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub features: Option<DatasetRef>,
+    /// `cells`, `features` (feature cells), `max_distance`, `seconds`, `queue_seconds`.
+    pub stats: serde_json::Value,
+}
+
+/// Answer of `POST /v1/grid/segment`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SegmentResponse {
+    /// Voronoi labels (int32; the seed label, -1 where no seed reaches).
+    pub labels: DatasetRef,
+    /// Distance to the nearest seed (f64).
+    pub distance: DatasetRef,
+    /// Distance to the nearest seed of another label (f64, +inf with one label).
+    pub second_distance: DatasetRef,
+    /// `second_distance - distance` (f64): 0 on the boundaries between labels.
+    pub confidence: DatasetRef,
+    /// The geodesic ball (uint8), with `max_distance`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ball: Option<DatasetRef>,
+    /// Per label: `label`, `cells`, `seeds`.
+    pub labels_summary: Option<serde_json::Value>,
+    /// 2D: GeoJSON FeatureCollection, one MultiPolygon per label, positions `[axis 0, axis 1]` in index units.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contours: Option<serde_json::Value>,
+    /// `cells`, `solves`, `seconds`, `queue_seconds`.
+    pub stats: serde_json::Value,
+}
+
+/// Answer of `POST /v1/grid/skeleton`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SkeletonResponse {
+    /// The skeleton (uint8 mask).
+    pub skeleton: DatasetRef,
+    /// The radius function on the skeleton (f64, 0 elsewhere).
+    pub radius: DatasetRef,
+    /// 2D: `nodes` (`id`, `point`, `radius`, `degree`) and `edges` (`source`, `target`, `points`, `radius`, `length`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub graph: Option<serde_json::Value>,
+    /// Cell counts, nodes, branches, timings.
+    pub stats: serde_json::Value,
+}
+
+/// Answer of `POST /v1/grid/offset`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct OffsetResponse {
+    /// The offset shape (uint8 mask).
+    pub offset: DatasetRef,
+    /// The distance used (f64).
+    pub distance: DatasetRef,
+    /// `cells_before`, `cells_after`, `area_before`, `area_after`, timings.
+    pub stats: serde_json::Value,
+}
+
+/// Answer of `POST /v1/grid/plan`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PlanResponse {
+    /// Vertices of the path, index coordinates, start to goal.
+    pub path: Vec<Vec<f64>>,
+    /// Physical length of the path.
+    pub length: f64,
+    /// Smallest clearance on the path (>= radius).
+    pub min_clearance: f64,
+    /// The robot's radius.
+    pub radius: f64,
+    /// The widest robot that can go from start to goal.
+    pub widest_radius: f64,
+    /// Clearance map (f64).
+    pub clearance: DatasetRef,
+    /// Distance to the goal in the free space (f64).
+    pub distance: DatasetRef,
+}
+
+/// Exact Euclidean distance transform.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/edt",
+    tag = "grid",
+    summary = "Exact Euclidean distance transform",
+    description = "Exact (not chamfer) Euclidean distance transform of a 2D or 3D mask with per-axis \
+spacing: `binary` (distance of every cell to the nearest non-zero cell), `signed` (negative inside), or \
+`multilabel` (distance to the nearest cell of another value). With `features`, the C-order linear index \
+of the nearest feature cell.",
+    request_body = GridEdtRequest,
+    responses(
+        (status = 200, description = "The transform was computed and stored.", body = EdtResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn edt(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridEdtRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}
+
+/// Seeded segmentation by geodesic Voronoi cells.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/segment",
+    tag = "grid",
+    summary = "Seeded segmentation (geodesic Voronoi)",
+    description = "Labels every cell with the label of its geodesically nearest seed under the metric \
+`cost` (as in `/v1/grid/distance`). Seeds are labelled points or cells, or a label image of scribbles. \
+Returns the label map, the distance to the nearest seed, the distance to the nearest seed of another \
+label and their difference (a confidence map), the geodesic ball with `max_distance`, and in 2D the \
+label contours as GeoJSON polygons. One solve per label.",
+    request_body = GridSegmentRequest,
+    responses(
+        (status = 200, description = "The segmentation was computed and stored.", body = SegmentResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn segment(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridSegmentRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}
+
+/// Medial axis of a shape.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/skeleton",
+    tag = "grid",
+    summary = "Medial axis (skeleton) with pruning",
+    description = "The medial axis of a 2D or 3D binary shape from its exact distance and \
+nearest-boundary-point maps. A branch is kept where its two nearest boundary points are at least \
+`min_boundary_length` (or `min_boundary_fraction` of the boundary length) apart along the boundary \
+(2D; the chord in 3D), so boundary noise grows no branch. In 2D the skeleton also comes as a graph of polylines.",
+    request_body = GridSkeletonRequest,
+    responses(
+        (status = 200, description = "The skeleton was computed and stored.", body = SkeletonResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn skeleton(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridSkeletonRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}
+
+/// Offset (dilate or erode) a shape.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/offset",
+    tag = "grid",
+    summary = "Shape offsetting (dilation, erosion)",
+    description = "Dilates or erodes a shape by a Euclidean (exact EDT) or geodesic (fast marching on \
+`cost`) distance, optionally around obstacles that block the propagation.",
+    request_body = GridOffsetRequest,
+    responses(
+        (status = 200, description = "The offset shape was computed and stored.", body = OffsetResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn offset(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridOffsetRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}
+
+/// Path planning for a disc robot.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/plan",
+    tag = "grid",
+    summary = "Motion planning for a disc robot",
+    description = "Grows the obstacles by the robot's radius with the exact distance transform and \
+returns a shortest collision-free path from start to goal (clearance >= radius along the whole \
+polyline). When there is none the answer is a 422 problem on `radius` that says so and gives the \
+widest robot that could pass.",
+    request_body = GridPlanRequest,
+    responses(
+        (status = 200, description = "A path was found.", body = PlanResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn plan(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridPlanRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}

@@ -1,0 +1,284 @@
+//! `POST /v1/grid/{edt,segment,skeleton,offset,plan}` over HTTP, and their 4xx.
+
+use geodex::io::ArrayData;
+use ndarray::ArrayD;
+use serde_json::json;
+
+use crate::common::{problem, spawn, TestApp};
+
+fn mask(n: usize, f: impl Fn(usize, usize) -> bool) -> ArrayData {
+    ArrayData::U8(ArrayD::from_shape_fn(ndarray::IxDyn(&[n, n]), |ix| {
+        u8::from(f(ix[0], ix[1]))
+    }))
+}
+
+async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Response {
+    app.client
+        .post(app.url(path))
+        .json(&body)
+        .send()
+        .await
+        .expect("post")
+}
+
+async fn npy_f64(app: &TestApp, reference: &serde_json::Value) -> Vec<f64> {
+    let url = format!(
+        "{}?format=npy",
+        reference["data_url"].as_str().expect("data_url")
+    );
+    let bytes = app.get(&url).await.bytes().await.expect("bytes");
+    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
+        .expect("decode")
+        .array
+    {
+        ArrayData::F64(a) => a.iter().copied().collect(),
+        other => panic!("{:?}", other.dtype()),
+    }
+}
+
+#[tokio::test]
+async fn edt_answers_exact_distances_and_features() {
+    let app = spawn(|_| {}).await;
+    let id = app.upload(&mask(20, |i, j| i == 5 && j == 7)).await;
+    let res = post(
+        &app,
+        "/v1/grid/edt",
+        json!({"mask": id, "spacing": [1.0, 2.0], "features": true}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let d = npy_f64(&app, &body["distance"]).await;
+    assert_eq!(d[8 * 20 + 11], (9.0f64 + 64.0).sqrt());
+    assert_eq!(body["distance"]["shape"], json!([20, 20]));
+    assert!(body["features"]["id"].is_string());
+    assert_eq!(body["stats"]["features"], 1);
+    // Signed: negative inside.
+    let res = post(&app, "/v1/grid/edt", json!({"mask": id, "mode": "signed"})).await;
+    let body: serde_json::Value = res.json().await.expect("json");
+    let d = npy_f64(&app, &body["distance"]).await;
+    assert_eq!(d[5 * 20 + 7], -1.0);
+    assert_eq!(d[5 * 20 + 8], 1.0);
+}
+
+#[tokio::test]
+async fn edt_refusals_name_the_field() {
+    let app = spawn(|_| {}).await;
+    let id = app.upload(&mask(8, |i, _| i < 2)).await;
+    let v = problem(
+        post(&app, "/v1/grid/edt", json!({"mask": "ds_missing"})).await,
+        404,
+    )
+    .await;
+    assert_eq!(v["field"], "mask");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/edt",
+            json!({"mask": id, "spacing": [1.0, -1.0]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "spacing[1]");
+    let v = problem(
+        post(&app, "/v1/grid/edt", json!({"mask": id, "spacing": [1.0]})).await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "spacing");
+    let res = post(&app, "/v1/grid/edt", json!({"mask": id, "mode": "chamfer"})).await;
+    assert!(res.status().is_client_error());
+    let res = post(&app, "/v1/grid/edt", json!({"mask": id, "extra": 1})).await;
+    assert!(res.status().is_client_error());
+}
+
+#[tokio::test]
+async fn segment_returns_labels_confidence_and_contours() {
+    let app = spawn(|_| {}).await;
+    let res = post(
+        &app,
+        "/v1/grid/segment",
+        json!({
+            "cost": {"constant": 1.0, "shape": [32, 32]},
+            "seeds": [{"label": 1, "point": [5, 5]}, {"label": 2, "cells": [[26, 26], [27, 27]]}],
+        }),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    for k in ["labels", "distance", "second_distance", "confidence"] {
+        assert!(body[k]["id"].is_string(), "{k}: {body}");
+    }
+    assert!(body.get("ball").is_none());
+    let features = body["contours"]["features"].as_array().expect("features");
+    assert_eq!(features.len(), 2);
+    let conf = npy_f64(&app, &body["confidence"]).await;
+    // (15, 16) is equidistant from (5, 5) and (26, 26).
+    assert!(
+        conf[5 * 32 + 5] > 20.0 && conf[15 * 32 + 16] < 0.5,
+        "{} {}",
+        conf[5 * 32 + 5],
+        conf[15 * 32 + 16]
+    );
+    // The label map renders as a colour PNG through the datasets endpoint.
+    let url = format!(
+        "{}?format=png",
+        body["labels"]["data_url"].as_str().expect("url")
+    );
+    let res = app.get(&url).await;
+    assert_eq!(res.status(), 200);
+    let bytes = res.bytes().await.expect("png");
+    assert_eq!(&bytes[1..4], b"PNG");
+
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/segment",
+            json!({"cost": {"constant": 1.0, "shape": [32, 32]}, "seeds": []}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "seeds");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/segment",
+            json!({"cost": {"constant": 1.0, "shape": [32, 32]},
+                   "seeds": [{"label": 1, "point": [5, 5]}, {"label": 2, "point": [50, 5]}]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "seeds[1]");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/segment",
+            json!({"cost": {"constant": 1.0, "shape": [32, 32]}, "seed_image": "ds_nope"}),
+        )
+        .await,
+        404,
+    )
+    .await;
+    assert_eq!(v["field"], "seed_image");
+}
+
+#[tokio::test]
+async fn skeleton_offset_and_plan_over_http() {
+    let app = spawn(|_| {}).await;
+    let rect = app
+        .upload(&mask(40, |i, j| {
+            (8..32).contains(&i) && (4..36).contains(&j)
+        }))
+        .await;
+    let res = post(&app, "/v1/grid/skeleton", json!({"mask": rect})).await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    assert!(body["skeleton"]["id"].is_string() && body["radius"]["id"].is_string());
+    let ends = body["graph"]["nodes"]
+        .as_array()
+        .expect("nodes")
+        .iter()
+        .filter(|n| n["degree"] == 1)
+        .count();
+    assert_eq!(ends, 4, "{}", body["graph"]);
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/skeleton",
+            json!({"mask": rect, "min_boundary_fraction": -0.1}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "min_boundary_fraction");
+
+    let disc = app
+        .upload(&mask(80, |i, j| {
+            ((i as f64 - 40.0).powi(2) + (j as f64 - 40.0).powi(2)).sqrt() <= 15.0
+        }))
+        .await;
+    let res = post(
+        &app,
+        "/v1/grid/offset",
+        json!({"mask": disc, "radius": 10.0}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let after = body["stats"]["cells_after"].as_f64().expect("cells");
+    assert!(
+        (after / (std::f64::consts::PI * 625.0) - 1.0).abs() < 0.01,
+        "{after}"
+    );
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/offset",
+            json!({"mask": disc, "radius": -1.0}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "radius");
+
+    let walls = app
+        .upload(&mask(40, |i, j| j == 20 && !(17..22).contains(&i)))
+        .await;
+    // The gap spans rows 17..21: wall cells at rows 16 and 22, the widest robot has radius 3.
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/plan",
+            json!({"obstacles": walls, "radius": 4.0, "start": [19, 3], "goal": [19, 36]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "radius");
+    assert!(v["detail"]
+        .as_str()
+        .expect("detail")
+        .contains("no collision-free path"));
+    let res = post(
+        &app,
+        "/v1/grid/plan",
+        json!({"obstacles": walls, "radius": 2.5, "start": [19, 3], "goal": [19, 36]}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    assert!(body["min_clearance"].as_f64().expect("clearance") >= 2.5);
+    assert_eq!(body["widest_radius"], 3.0);
+    assert!(body["clearance"]["id"].is_string());
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/plan",
+            json!({"obstacles": walls, "radius": 1.0, "start": [19, 3, 1], "goal": [19, 36]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "start");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/plan",
+            json!({"obstacles": walls, "radius": 1.0, "start": [0, 20], "goal": [19, 36]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "start");
+}
