@@ -47,8 +47,18 @@
 //! path. This is Xin and Wang's filtering theorem in interval form: a window
 //! is tested against both vertices of its edge when created and again when
 //! processed, and the third vertex of the face is tested when the children
-//! land on the edges incident to it. A small relative tolerance makes the
-//! cut conservative, so rounding can only keep a window, never lose one.
+//! land on the edges incident to it. The same argument holds against any
+//! window `w'` already propagated across the same edge (in either
+//! direction): where `d_{w'}(x) < d_w(x)` the window loses, and the
+//! crossings solve `σ + |I x| = σ' + |I' x|`, a quadratic once squared
+//! (MMP's intersection, used here only to cut the new window's ends).
+//! Finally Chen and Han's *one angle, one split*: when the distance of `c`
+//! was set by a straight path entering the same face through the same edge
+//! at `x1`, and `w` reaches `c` with a larger distance, the rays of `w`
+//! entering between `x1` and `xc` cross that path inside the face and lose
+//! beyond the crossing, so that part of the child is not created. A small
+//! relative tolerance makes every cut conservative, so rounding can only
+//! keep a window, never lose one.
 //!
 //! **Order.** Windows are processed in increasing order of their minimum
 //! distance `σ + dist(I, [b0, b1])` (a binary heap), interleaved with the
@@ -68,23 +78,26 @@
 //! order.
 //!
 //! **Why this algorithm.** MMP (as implemented by Surazhsky et al.) keeps
-//! the windows of every edge disjoint by intersecting them, which costs a
-//! sorted structure per edge and a quadratic solve per pair, and is where
-//! its implementations fail (the asserts reported on `libigl#1013` and
-//! `openep-core#55`). Chen–Han with Xin and Wang's filter needs no
-//! intersection: each window is tested against two vertex distances, which
-//! is a few flops, and the window tree is never stored, so memory is the
-//! heap of the current wavefront. VTP is faster still but its
-//! vertex-oriented bookkeeping is much larger. The interval form of the
-//! filter used here trims windows instead of only dropping them, which
-//! keeps their number near MMP's on the meshes we measured.
+//! the windows of every edge disjoint by intersecting new and old windows
+//! both ways and re-sorting the edge, which is where its implementations
+//! fail (the asserts reported on `libigl#1013` and `openep-core#55`).
+//! Chen–Han with Xin and Wang's filter never modifies a window once
+//! propagated: a new window is only cut, against two vertex distances (a
+//! few flops) and, one-sidedly, against the earlier windows of its edge,
+//! and every cut is justified by a real shorter path, so a bad cut can cost
+//! time but never a wrong distance. The parent tree is not stored (no
+//! path backtracking yet). VTP is faster still, but its vertex-oriented
+//! bookkeeping is much larger than what fitted in this work; with the
+//! filters above about 21 windows per vertex are processed on an icosphere
+//! of 2,562 vertices (see the benchmark for larger meshes).
 //!
 //! **Complexity.** Worst case `O(n²)` windows and `O(n² log n)` time (as
 //! for Chen–Han); on the icospheres of the benchmark the number of windows
 //! processed per vertex is a small constant (see the benchmark in
 //! `tests/bench/mesh_exact.rs`), so the time is `O(n log n)` in practice.
-//! Memory is `O(n)` for the vertex arrays plus the pending windows (56
-//! bytes each).
+//! Memory is `O(n)` for the vertex arrays, plus the pending windows (56
+//! bytes each) and the propagated ones (60 bytes each, kept per edge for
+//! the comparison above).
 //!
 //! **Robustness.** Degenerate faces are never entered; a final
 //! `O(E)` check verifies `U(v) ≤ U(u) + |uv|` on every edge and, only if
@@ -270,6 +283,9 @@ struct Propagation<'a> {
     dist: Vec<f64>,
     label: Vec<u32>,
     emitted: Vec<f64>,
+    /// For each vertex, the half-edge and crossing of the straight path that
+    /// set its distance (`NONE` when set otherwise).
+    via: Vec<(u32, f64)>,
     windows: BinaryHeap<Window>,
     vertices: BinaryHeap<VertexEvent>,
     /// Head of the list of propagated windows of each half-edge (into `stored`).
@@ -297,7 +313,9 @@ impl<'a> Propagation<'a> {
             let lmax = l[0].max(l[1]).max(l[2]);
             let twice_area = norm(super::cross(sub(p[1], p[0]), sub(p[2], p[0])));
             // Smallest height = 2 area / longest edge.
-            if !(lmax > 0.0) || !(twice_area > DEGENERATE * lmax * lmax) {
+            // Written so that NaN counts as degenerate.
+            let sound = lmax > 0.0 && twice_area > DEGENERATE * lmax * lmax;
+            if !sound {
                 degenerate[f] = true;
                 for &v in face {
                     pseudo[v as usize] = true;
@@ -335,6 +353,7 @@ impl<'a> Propagation<'a> {
             dist: vec![f64::INFINITY; nv],
             label: vec![NONE; nv],
             emitted: vec![f64::INFINITY; nv],
+            via: vec![(NONE, 0.0); nv],
             windows: BinaryHeap::new(),
             vertices: BinaryHeap::new(),
             edge_head: vec![NONE; 3 * nf],
@@ -368,9 +387,10 @@ impl<'a> Propagation<'a> {
 
     /// Lowers `U(v)` to `d` (the length of a real path) if that is shorter.
     #[inline]
-    fn update(&mut self, v: u32, d: f64, label: u32) {
+    fn update(&mut self, v: u32, d: f64, label: u32) -> bool {
         let vi = v as usize;
         if d < self.dist[vi] {
+            self.via[vi] = (NONE, 0.0);
             if self.dist[vi] == f64::INFINITY {
                 self.reached += 1;
             }
@@ -379,6 +399,9 @@ impl<'a> Propagation<'a> {
             if self.pseudo[vi] && d <= self.max_distance {
                 self.vertices.push(VertexEvent { key: d, v });
             }
+            true
+        } else {
+            false
         }
     }
 
@@ -549,7 +572,7 @@ impl<'a> Propagation<'a> {
             return;
         }
         let xm = w.sx.clamp(w.b0, w.b1);
-        w.key = sigma + (xm - w.sx).hypot(w.sy);
+        w.key = sigma + len2(xm - w.sx, w.sy);
         if w.key > self.max_distance {
             return;
         }
@@ -563,7 +586,8 @@ impl<'a> Propagation<'a> {
     /// false when nothing is left.
     #[inline]
     fn trim(&self, w: &mut Window, l: f64) -> bool {
-        if !(w.b1 - w.b0 > MIN_WIDTH * l) {
+        let wide = w.b1 - w.b0 > MIN_WIDTH * l;
+        if !wide {
             return false;
         }
         let f = w.h as usize / 3;
@@ -571,7 +595,7 @@ impl<'a> Propagation<'a> {
         let up = self.dist[self.vertex(f, k) as usize];
         let uq = self.dist[self.vertex(f, k + 1) as usize];
         let (sigma, sx, sy) = (w.sigma, w.sx, w.sy);
-        let dw = |x: f64| sigma + (x - sx).hypot(sy);
+        let dw = |x: f64| sigma + len2(x - sx, sy);
         if up < f64::INFINITY {
             let dd = up - w.sigma + TRIM_TOL * (up + l);
             // g(x) = d_w(x) - U(p) - x, non-increasing; dominated where > 0.
@@ -606,7 +630,8 @@ impl<'a> Propagation<'a> {
                 }
             }
         }
-        if !(w.b1 - w.b0 > MIN_WIDTH * l) {
+        let wide = w.b1 - w.b0 > MIN_WIDTH * l;
+        if !wide {
             return false;
         }
         // Against the windows already propagated across this edge, in both
@@ -649,8 +674,8 @@ impl<'a> Propagation<'a> {
         );
         let (sx, sy, sigma, label) = (w.sx, w.sy, w.sigma, w.label);
         // Vertices a and b through the ends of the interval.
-        let d0 = sigma + (w.b0 - sx).hypot(sy);
-        let d1 = sigma + (w.b1 - sx).hypot(sy);
+        let d0 = sigma + len2(w.b0 - sx, sy);
+        let d1 = sigma + len2(w.b1 - sx, sy);
         self.update(a, d0 + w.b0, label);
         self.update(b, d1 + (fr.l - w.b1), label);
         if !self.trim(&mut w, fr.l) {
@@ -664,18 +689,38 @@ impl<'a> Propagation<'a> {
         // The ray through c crosses the edge at xc.
         let xc = sx + (fr.cx - sx) * (-sy) / (fr.cy - sy);
         let xp = xc.clamp(b0, b1);
-        let dc = sigma + (xp - sx).hypot(sy) + (fr.cx - xp).hypot(fr.cy);
-        self.update(c, dc, label);
+        let dc = sigma + len2(xp - sx, sy) + len2(fr.cx - xp, fr.cy);
+        let improved = self.update(c, dc, label);
+        let mut left = (b0, xc.min(b1));
+        let mut right = (xc.max(b0), b1);
+        if improved && xp == xc {
+            self.via[c as usize] = (w.h, xc);
+        } else if !improved {
+            // One angle, one split (Chen and Han): c is reached more cheaply
+            // by a path entering this face at x1 on the same edge. Rays of
+            // this window entering between x1 and xc cross that path's
+            // segment x1 -> c inside the face, and lose to it beyond the
+            // crossing X: if they won, d_w(c) <= d_w(X) + |Xc| <= U(c).
+            let (vh, x1) = self.via[c as usize];
+            let uc = self.dist[c as usize];
+            if vh == w.h && dc > uc + TRIM_TOL * (uc + fr.l) {
+                if x1 < xc {
+                    left.1 = left.1.min(x1);
+                } else {
+                    right.0 = right.0.max(x1);
+                }
+            }
+        }
         // Left part: rays with x < xc leave through edge k+2 (c -> a).
-        if b0 < xc {
+        if left.0 < left.1 {
             let (ox, oy) = (fr.cx, fr.cy);
             let (dx, dy) = (-fr.cx / fr.lca, -fr.cy / fr.lca);
-            let s_end = if xc < b1 {
+            let s_end = if left.1 == xc {
                 0.0
             } else {
-                ray_hit(sx, sy, b1, ox, oy, dx, dy, fr.lca)
+                ray_hit(sx, sy, left.1, ox, oy, dx, dy, fr.lca)
             };
-            let s_start = ray_hit(sx, sy, b0, ox, oy, dx, dy, fr.lca);
+            let s_start = ray_hit(sx, sy, left.0, ox, oy, dx, dy, fr.lca);
             let (nx, ny) = to_frame(sx, sy, ox, oy, dx, dy);
             self.push_child(
                 f,
@@ -689,15 +734,15 @@ impl<'a> Propagation<'a> {
             );
         }
         // Right part: rays with x > xc leave through edge k+1 (b -> c).
-        if xc < b1 {
+        if right.0 < right.1 {
             let (ox, oy) = (fr.l, 0.0);
             let (dx, dy) = ((fr.cx - fr.l) / fr.lbc, fr.cy / fr.lbc);
-            let s_start = if xc > b0 {
+            let s_start = if right.0 == xc {
                 fr.lbc
             } else {
-                ray_hit(sx, sy, b0, ox, oy, dx, dy, fr.lbc)
+                ray_hit(sx, sy, right.0, ox, oy, dx, dy, fr.lbc)
             };
-            let s_end = ray_hit(sx, sy, b1, ox, oy, dx, dy, fr.lbc);
+            let s_end = ray_hit(sx, sy, right.1, ox, oy, dx, dy, fr.lbc);
             let (nx, ny) = to_frame(sx, sy, ox, oy, dx, dy);
             self.push_child(
                 f,
@@ -736,7 +781,7 @@ impl<'a> Propagation<'a> {
                 self.propagate(w);
             }
             pops += 1;
-            if pops % POLL == 0 {
+            if pops.is_multiple_of(POLL) {
                 if control.is_cancelled() {
                     return Err(MeshSolveError::Cancelled);
                 }
@@ -831,12 +876,13 @@ impl<'a> Propagation<'a> {
 fn trim_by_window(w: &mut Window, o: &Window, l: f64) -> bool {
     let lo = w.b0.max(o.b0);
     let hi = w.b1.min(o.b1);
-    if !(hi > lo) {
+    let overlap = hi > lo;
+    if !overlap {
         return true;
     }
     let tol = TRIM_TOL * (o.sigma.abs() + o.sx.abs() + o.sy.abs() + l);
-    let dw = |x: f64| w.sigma + (x - w.sx).hypot(w.sy);
-    let dominated = |x: f64| dw(x) > o.sigma + tol + (x - o.sx).hypot(o.sy);
+    let dw = |x: f64| w.sigma + len2(x - w.sx, w.sy);
+    let dominated = |x: f64| dw(x) > o.sigma + tol + len2(x - o.sx, o.sy);
     let touches_start = lo <= w.b0;
     let touches_end = hi >= w.b1;
     if !touches_start && !touches_end {
@@ -909,6 +955,12 @@ fn trim_by_window(w: &mut Window, o: &Window, l: f64) -> bool {
         w.b1 = w.b1.min(start);
     }
     w.b1 - w.b0 > MIN_WIDTH * l
+}
+
+/// `sqrt(x² + y²)` (no overflow guard: coordinates are mesh-sized).
+#[inline(always)]
+fn len2(x: f64, y: f64) -> f64 {
+    (x * x + y * y).sqrt()
 }
 
 /// Where the ray from `(sx, sy)` through `(x, 0)` meets the line `o + s d`
