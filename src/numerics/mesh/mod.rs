@@ -5,6 +5,8 @@
 //! Half-edge convention: edge `k` of face `f` goes from `faces[f][k]` to
 //! `faces[f][(k + 1) % 3]` and has the id `3 f + k`.
 
+pub mod exact;
+
 /// Sentinel for "no such half-edge / face".
 pub const NONE: u32 = u32::MAX;
 
