@@ -49,6 +49,8 @@ pub struct AppState {
     pub draining: Arc<AtomicBool>,
     /// The Prometheus registry.
     pub metrics: PrometheusHandle,
+    /// The durable job queue.
+    pub jobs: Arc<crate::jobs::Jobs>,
 }
 
 impl AppState {
@@ -71,6 +73,10 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
         .routes(routes!(routes::health::metrics))
+        .routes(routes!(routes::jobs::submit, routes::jobs::list))
+        .routes(routes!(routes::jobs::get))
+        .routes(routes!(routes::jobs::cancel))
+        .routes(routes!(routes::jobs::result))
 }
 
 /// The complete application: API routes, `/openapi.json`, `/docs`, the
