@@ -159,7 +159,8 @@ impl Application {
         sweeper.abort();
         // SIGTERM releases the leases of running jobs: another replica (or
         // this one after a restart) runs them again at once.
-        jobs.shutdown(workers, Duration::from_secs(5).min(grace)).await;
+        jobs.shutdown(workers, Duration::from_secs(5).min(grace))
+            .await;
         result
     }
 }

@@ -79,7 +79,11 @@ pub struct ServeArgs {
     #[arg(long, env = "GEODEX_JOB_TIME_LIMIT_SECS", default_value_t = 3600.0)]
     pub job_time_limit_secs: f64,
     /// Largest time limit a job may ask for, in seconds.
-    #[arg(long, env = "GEODEX_JOB_MAX_TIME_LIMIT_SECS", default_value_t = 86400.0)]
+    #[arg(
+        long,
+        env = "GEODEX_JOB_MAX_TIME_LIMIT_SECS",
+        default_value_t = 86400.0
+    )]
     pub job_max_time_limit_secs: f64,
     /// How long ended jobs and their results are kept, in seconds.
     #[arg(long, env = "GEODEX_JOB_RETENTION_SECS", default_value_t = 7 * 24 * 3600)]
@@ -139,8 +143,7 @@ impl ServeArgs {
     /// Settings of the job system.
     pub fn jobs_config(&self) -> crate::jobs::JobsConfig {
         let secs = |s: f64| {
-            std::time::Duration::try_from_secs_f64(s.max(0.001))
-                .unwrap_or(std::time::Duration::MAX)
+            std::time::Duration::try_from_secs_f64(s.max(0.001)).unwrap_or(std::time::Duration::MAX)
         };
         crate::jobs::JobsConfig {
             queue: self.queue.clone(),

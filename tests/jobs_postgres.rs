@@ -32,7 +32,9 @@ fn postgres_url() -> Option<String> {
 
 /// A fresh schema; returns the URL that selects it, and the admin pool.
 async fn fresh_schema(base: &str) -> (String, sqlx::PgPool, String) {
-    let pool = sqlx::PgPool::connect(base).await.expect("connect to PostgreSQL");
+    let pool = sqlx::PgPool::connect(base)
+        .await
+        .expect("connect to PostgreSQL");
     let schema = format!("geodex_test_{}", uuid::Uuid::new_v4().simple());
     pool.execute(sqlx::AssertSqlSafe(format!("CREATE SCHEMA {schema}")))
         .await
@@ -84,7 +86,11 @@ async fn two_processes_share_a_postgres_queue() {
     for k in 0..40 {
         let p = request(&cost_id, k, N);
         let server = if k % 2 == 0 { &a } else { &b };
-        ids.push(server.submit(&json!({"operation": "grid.distance", "params": p})).await);
+        ids.push(
+            server
+                .submit(&json!({"operation": "grid.distance", "params": p}))
+                .await,
+        );
         params.push(p);
     }
     // Kill A mid-run: once jobs are running and a few are done.
@@ -138,10 +144,15 @@ async fn two_processes_share_a_postgres_queue() {
     api_args.extend(["--job-workers", "0"]);
     let a2 = Server::start(data.path(), "a2", &api_args).await;
     let long = json!({"cost": {"constant": 1.0, "shape": [4000, 4000]}, "sources": [{"point": [1.0, 1.0]}], "outputs": {"labels": false}});
-    let id = a2.submit(&json!({"operation": "grid.distance", "params": long})).await;
+    let id = a2
+        .submit(&json!({"operation": "grid.distance", "params": long}))
+        .await;
     let t = Instant::now();
     while a2.job(&id).await["progress"].as_f64().unwrap_or(0.0) <= 0.0 {
-        assert!(t.elapsed() < Duration::from_secs(30), "the long job did not start on B");
+        assert!(
+            t.elapsed() < Duration::from_secs(30),
+            "the long job did not start on B"
+        );
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
     let asked = Instant::now();

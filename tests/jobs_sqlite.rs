@@ -31,15 +31,16 @@ async fn sqlite_jobs_survive_sigkill_and_restart() {
     let mut params = Vec::new();
     for k in 0..20 {
         let p = request(&cost_id, k, N);
-        ids.push(a.submit(&json!({"operation": "grid.distance", "params": p})).await);
+        ids.push(
+            a.submit(&json!({"operation": "grid.distance", "params": p}))
+                .await,
+        );
         params.push(p);
     }
     // Kill once some jobs run and most are still queued.
     let t = Instant::now();
     loop {
-        let running = a
-            .get_json("/v1/jobs?state=running")
-            .await["jobs"]
+        let running = a.get_json("/v1/jobs?state=running").await["jobs"]
             .as_array()
             .map_or(0, Vec::len);
         if running > 0 {
@@ -89,7 +90,9 @@ async fn sqlite_jobs_survive_sigkill_and_restart() {
 async fn problem(r: reqwest::Response, status: u16) -> Value {
     assert_eq!(r.status(), status);
     assert_eq!(
-        r.headers().get("content-type").and_then(|v| v.to_str().ok()),
+        r.headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok()),
         Some("application/problem+json")
     );
     r.json().await.expect("problem")
@@ -113,7 +116,8 @@ async fn sqlite_job_api() {
         ],
     )
     .await;
-    let small = json!({"cost": {"constant": 1.0, "shape": [40, 40]}, "sources": [{"point": [3.0, 4.0]}]});
+    let small =
+        json!({"cost": {"constant": 1.0, "shape": [40, 40]}, "sources": [{"point": [3.0, 4.0]}]});
 
     // Idempotency: the same key twice gives one job; another body is refused.
     let body = json!({"operation": "grid.distance", "params": small});
@@ -124,7 +128,9 @@ async fn sqlite_job_api() {
     let r2 = s.post_json("/v1/jobs", &body, &key).await;
     assert_eq!(r2.status(), 202);
     assert_eq!(
-        r2.headers().get("idempotent-replayed").and_then(|v| v.to_str().ok()),
+        r2.headers()
+            .get("idempotent-replayed")
+            .and_then(|v| v.to_str().ok()),
         Some("true")
     );
     let j2: Value = r2.json().await.expect("json");
@@ -134,7 +140,9 @@ async fn sqlite_job_api() {
     assert_eq!(p["field"], "Idempotency-Key");
     let all = s.get_json("/v1/jobs?limit=1000").await;
     assert_eq!(all["jobs"].as_array().map(Vec::len), Some(1), "{all}");
-    let done = s.wait_final(j1["id"].as_str().expect("id"), Duration::from_secs(30)).await;
+    let done = s
+        .wait_final(j1["id"].as_str().expect("id"), Duration::from_secs(30))
+        .await;
     assert_eq!(done["state"], "succeeded", "{done}");
     assert_eq!(done["attempts"], 1);
     // The 40x40 constant-cost distance from (3, 4): at (3, 30) it is 26 (a straight axis line).
@@ -144,14 +152,30 @@ async fn sqlite_job_api() {
 
     // Validation happens at submit and names the field.
     let bad = json!({"operation": "grid.distance", "params": {"cost": {"constant": -1.0, "shape": [8, 8]}, "sources": [{"point": [1.0, 1.0]}]}});
-    assert_eq!(problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"], "params.cost.constant");
+    assert_eq!(
+        problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"],
+        "params.cost.constant"
+    );
     let bad = json!({"operation": "grid.nope", "params": {}});
-    assert_eq!(problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"], "operation");
+    assert_eq!(
+        problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"],
+        "operation"
+    );
     let bad = json!({"operation": "grid.distance", "params": {"cost": {"dataset": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44"}, "sources": [{"point": [1.0, 1.0]}]}});
-    assert_eq!(problem(s.post_json("/v1/jobs", &bad, &[]).await, 404).await["field"], "params.cost.dataset");
+    assert_eq!(
+        problem(s.post_json("/v1/jobs", &bad, &[]).await, 404).await["field"],
+        "params.cost.dataset"
+    );
     let bad = json!({"operation": "grid.distance", "params": small, "time_limit_secs": -1});
-    assert_eq!(problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"], "time_limit_secs");
-    problem(s.get("/v1/jobs/job_0192f1b27c1e7d3a9d553c0f2b8a1e44").await, 404).await;
+    assert_eq!(
+        problem(s.post_json("/v1/jobs", &bad, &[]).await, 422).await["field"],
+        "time_limit_secs"
+    );
+    problem(
+        s.get("/v1/jobs/job_0192f1b27c1e7d3a9d553c0f2b8a1e44").await,
+        404,
+    )
+    .await;
     problem(s.get("/v1/jobs?limit=0").await, 422).await;
 
     // Time limit: a large solve with a 0.3 s limit ends failed, with a clear problem.
@@ -165,13 +189,20 @@ async fn sqlite_job_api() {
     assert_eq!(j["state"], "failed", "{j}");
     assert_eq!(j["error"]["type"], "https://geodex.dev/problems/time-limit");
     assert_eq!(j["error"]["field"], "time_limit_secs");
-    assert!(j["error"]["detail"].as_str().is_some_and(|d| d.contains("0.3 s")), "{j}");
+    assert!(
+        j["error"]["detail"]
+            .as_str()
+            .is_some_and(|d| d.contains("0.3 s")),
+        "{j}"
+    );
     assert!(j["progress"].as_f64().is_some_and(|p| p < 1.0));
     problem(s.get(&format!("/v1/jobs/{id}/results/distance")).await, 409).await;
 
     // Progress goes from 0 to 1, never backwards.
     let mid = json!({"cost": {"constant": 1.0, "shape": [900, 900]}, "sources": [{"point": [1.0, 1.0]}], "outputs": {"labels": false}});
-    let id = s.submit(&json!({"operation": "grid.distance", "params": mid})).await;
+    let id = s
+        .submit(&json!({"operation": "grid.distance", "params": mid}))
+        .await;
     let mut seen = Vec::new();
     let t = Instant::now();
     let last = loop {
@@ -186,24 +217,35 @@ async fn sqlite_job_api() {
     assert_eq!(seen.first().copied(), Some(0.0), "{seen:?}");
     assert_eq!(last["progress"], 1.0);
     assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
-    assert!(seen.iter().any(|p| *p > 0.0 && *p < 1.0), "an intermediate value: {seen:?}");
+    assert!(
+        seen.iter().any(|p| *p > 0.0 && *p < 1.0),
+        "an intermediate value: {seen:?}"
+    );
 
     // Cancellation: a running job stops within a second; a queued one never starts.
     let long = json!({"cost": {"constant": 1.0, "shape": [4000, 4000]}, "sources": [{"point": [1.0, 1.0]}], "outputs": {"labels": false}});
-    let running = s.submit(&json!({"operation": "grid.distance", "params": long})).await;
-    let queued = s.submit(&json!({"operation": "grid.distance", "params": small, "priority": "batch"})).await;
+    let running = s
+        .submit(&json!({"operation": "grid.distance", "params": long}))
+        .await;
+    let queued = s
+        .submit(&json!({"operation": "grid.distance", "params": small, "priority": "batch"}))
+        .await;
     let t = Instant::now();
     // Running, and the solver loop started (it reports progress).
     while s.job(&running).await["progress"].as_f64().unwrap_or(0.0) <= 0.0 {
         assert!(t.elapsed() < Duration::from_secs(30));
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
-    let r = s.post_json(&format!("/v1/jobs/{queued}/cancel"), &json!({}), &[]).await;
+    let r = s
+        .post_json(&format!("/v1/jobs/{queued}/cancel"), &json!({}), &[])
+        .await;
     assert_eq!(r.status(), 200);
     let q: Value = r.json().await.expect("json");
     assert_eq!(q["state"], "cancelled");
     let asked = Instant::now();
-    let r = s.post_json(&format!("/v1/jobs/{running}/cancel"), &json!({}), &[]).await;
+    let r = s
+        .post_json(&format!("/v1/jobs/{running}/cancel"), &json!({}), &[])
+        .await;
     assert_eq!(r.status(), 202);
     let j = s.wait_final(&running, Duration::from_secs(5)).await;
     let took = asked.elapsed();
@@ -215,19 +257,37 @@ async fn sqlite_job_api() {
     assert_eq!(q["state"], "cancelled");
     assert_eq!(q["attempts"], 0, "never started: {q}");
     assert!(q.get("started_at").is_none(), "{q}");
-    problem(s.post_json(&format!("/v1/jobs/{}/cancel", j1["id"].as_str().expect("id")), &json!({}), &[]).await, 409).await;
+    problem(
+        s.post_json(
+            &format!("/v1/jobs/{}/cancel", j1["id"].as_str().expect("id")),
+            &json!({}),
+            &[],
+        )
+        .await,
+        409,
+    )
+    .await;
 
     // Prefer: respond-async on the synchronous endpoint.
     let r = s
         .post_json("/v1/grid/distance", &small, &[("Prefer", "respond-async")])
         .await;
     assert_eq!(r.status(), 202);
-    let loc = r.headers().get("location").and_then(|v| v.to_str().ok()).map(str::to_string);
+    let loc = r
+        .headers()
+        .get("location")
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string);
     assert!(r.headers().contains_key("retry-after"));
     let j: Value = r.json().await.expect("json");
     assert_eq!(j["priority"], "interactive");
-    assert_eq!(loc, Some(format!("/v1/jobs/{}", j["id"].as_str().expect("id"))));
-    let j = s.wait_final(j["id"].as_str().expect("id"), Duration::from_secs(30)).await;
+    assert_eq!(
+        loc,
+        Some(format!("/v1/jobs/{}", j["id"].as_str().expect("id")))
+    );
+    let j = s
+        .wait_final(j["id"].as_str().expect("id"), Duration::from_secs(30))
+        .await;
     assert_eq!(j["state"], "succeeded");
     let got = s.result(j["id"].as_str().expect("id"), "distance").await;
     let want = compute(&small, "none", &wavy_cost(2));
@@ -237,11 +297,18 @@ async fn sqlite_job_api() {
     let page = s.get_json("/v1/jobs?state=succeeded&limit=1").await;
     assert_eq!(page["jobs"].as_array().map(Vec::len), Some(1));
     let cursor = page["next_cursor"].as_str().expect("cursor").to_string();
-    let page2 = s.get_json(&format!("/v1/jobs?state=succeeded&limit=10&cursor={cursor}")).await;
+    let page2 = s
+        .get_json(&format!(
+            "/v1/jobs?state=succeeded&limit=10&cursor={cursor}"
+        ))
+        .await;
     let n2 = page2["jobs"].as_array().map_or(0, Vec::len);
     assert_eq!(n2, 2, "{page2}");
     assert!(page2.get("next_cursor").is_none());
     let metrics = s.get("/metrics").await.text().await.expect("metrics");
-    assert!(metrics.contains("geodex_job_run_seconds_bucket"), "{metrics}");
+    assert!(
+        metrics.contains("geodex_job_run_seconds_bucket"),
+        "{metrics}"
+    );
     assert!(metrics.contains("geodex_job_failures_total"), "{metrics}");
 }

@@ -268,7 +268,8 @@ impl JobDb {
     /// Inserts a job. With an idempotency key already used, inserts nothing
     /// and returns the existing job and `false`.
     pub async fn insert(&self, job: &NewJob) -> Result<(JobRow, bool), DbError> {
-        let insert = "INSERT INTO geodex_jobs (id, operation, params, state, priority, time_limit_ms, \
+        let insert =
+            "INSERT INTO geodex_jobs (id, operation, params, state, priority, time_limit_ms, \
              attempts, max_attempts, cancel_requested, progress, idempotency_key, request_hash, \
              created_at, updated_at) \
              VALUES ($1, $2, $3, 'queued', $4, $5, 0, $6, FALSE, 0, $7, $8, $9, $9) \
@@ -508,7 +509,8 @@ impl JobDb {
         cancelled_problem: &str,
         failed_problem: &str,
     ) -> Result<Reaped, DbError> {
-        let cancel = "UPDATE geodex_jobs SET state = 'cancelled', finished_at = $1, updated_at = $1, \
+        let cancel =
+            "UPDATE geodex_jobs SET state = 'cancelled', finished_at = $1, updated_at = $1, \
                       expires_at = $2, error = $3, lease_owner = NULL, lease_until = NULL \
                       WHERE state = 'running' AND lease_until < $1 AND cancel_requested = TRUE";
         let fail = "UPDATE geodex_jobs SET state = 'failed', finished_at = $1, updated_at = $1, \

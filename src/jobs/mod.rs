@@ -58,8 +58,7 @@ pub const METRIC_FAILURES: &str = "geodex_job_failures_total";
 pub const METRIC_RETRIES: &str = "geodex_job_retries_total";
 /// Histogram buckets of the job metrics (seconds).
 pub const METRIC_BUCKETS: &[f64] = &[
-    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 900.0,
-    3600.0,
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 900.0, 3600.0,
 ];
 
 /// An error of the job system outside a request.
@@ -327,7 +326,10 @@ impl From<&JobRow> for Job {
                 .result
                 .as_deref()
                 .and_then(|s| serde_json::from_str(s).ok()),
-            error: r.error.as_deref().and_then(|s| serde_json::from_str(s).ok()),
+            error: r
+                .error
+                .as_deref()
+                .and_then(|s| serde_json::from_str(s).ok()),
         }
     }
 }
@@ -403,9 +405,9 @@ pub(crate) struct RunFlags {
 impl RunFlags {
     /// Raises the flag with a reason (the first reason wins).
     pub fn stop(&self, reason: u8) {
-        let _ = self
-            .reason
-            .compare_exchange(stop::NONE, reason, Ordering::SeqCst, Ordering::SeqCst);
+        let _ =
+            self.reason
+                .compare_exchange(stop::NONE, reason, Ordering::SeqCst, Ordering::SeqCst);
         self.flag.store(true, Ordering::SeqCst);
     }
 
@@ -635,10 +637,7 @@ impl Jobs {
         }
         let now = now_ms();
         let problem = problem_json(&cancelled_problem(), id);
-        let row = self
-            .db
-            .cancel(id, now, self.expiry(now), &problem)
-            .await?;
+        let row = self.db.cancel(id, now, self.expiry(now), &problem).await?;
         // A job running in this process stops at once, without waiting for its heartbeat.
         if row.as_ref().is_some_and(|r| r.state == "running") {
             self.raise_local(id, stop::CANCEL);

@@ -130,7 +130,8 @@ mod tests {
         let neg = serde_json::json!({"cost": {"constant": -1.0, "shape": [8, 8]}, "sources": [{"point": [1.0, 1.0]}]});
         let err = (e.prepare)(&neg, &OpLimits::default()).expect_err("negative cost");
         assert_eq!(err.problem.field.as_deref(), Some("params.cost.constant"));
-        let ds = serde_json::json!({"cost": {"dataset": "ds_x"}, "sources": [{"point": [1.0, 1.0]}]});
+        let ds =
+            serde_json::json!({"cost": {"dataset": "ds_x"}, "sources": [{"point": [1.0, 1.0]}]});
         let p = (e.prepare)(&ds, &OpLimits::default()).expect("valid");
         assert_eq!(
             p.datasets,

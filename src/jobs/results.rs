@@ -129,7 +129,11 @@ impl ResultStore {
 
     /// Deletes every object under `results/<job>/` except those of `keep`
     /// (an attempt number); returns how many were removed.
-    pub async fn remove_job(&self, job: &str, keep: Option<i64>) -> Result<usize, ResultStoreError> {
+    pub async fn remove_job(
+        &self,
+        job: &str,
+        keep: Option<i64>,
+    ) -> Result<usize, ResultStoreError> {
         let keep = keep.map(|a| format!("results/{job}/{a}/"));
         self.remove_under(&format!("results/{job}"), keep.as_deref())
             .await
@@ -145,7 +149,11 @@ impl ResultStore {
             .await
     }
 
-    async fn remove_under(&self, prefix: &str, keep: Option<&str>) -> Result<usize, ResultStoreError> {
+    async fn remove_under(
+        &self,
+        prefix: &str,
+        keep: Option<&str>,
+    ) -> Result<usize, ResultStoreError> {
         let prefix = ObjectPath::from(prefix);
         let mut listing = self.store.list(Some(&prefix));
         let mut doomed = Vec::new();
@@ -193,7 +201,10 @@ mod tests {
         let k1 = ResultStore::key("job_a", 1, "distance");
         let k2 = ResultStore::key("job_a", 2, "distance");
         s.put_new(&k1, vec![1, 2, 3]).await.unwrap();
-        assert!(s.put_new(&k1, vec![9]).await.is_err(), "second write refused");
+        assert!(
+            s.put_new(&k1, vec![9]).await.is_err(),
+            "second write refused"
+        );
         assert_eq!(&s.get(&k1).await.unwrap()[..], &[1, 2, 3]);
         s.put_new(&k2, vec![4]).await.unwrap();
         assert_eq!(s.remove_job("job_a", Some(2)).await.unwrap(), 1);

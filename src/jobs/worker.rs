@@ -158,7 +158,8 @@ impl Jobs {
         let reap_every = self.config.poll.max(Duration::from_millis(100)) * 2;
         let mut last_gauges = Instant::now() - Duration::from_secs(60);
         let mut last_sweep = Instant::now() - Duration::from_secs(3600);
-        let sweep_every = (self.config.retention / 4).clamp(Duration::from_secs(1), Duration::from_secs(300));
+        let sweep_every =
+            (self.config.retention / 4).clamp(Duration::from_secs(1), Duration::from_secs(300));
         loop {
             self.reap_once().await;
             if last_gauges.elapsed() >= Duration::from_secs(5) {
@@ -288,8 +289,10 @@ impl Jobs {
         let started = Instant::now();
         let limit = Duration::from_millis(u64::try_from(time_limit_ms).unwrap_or(0));
         // The claim just wrote the lease: the first heartbeat is one period away.
-        let mut tick =
-            tokio::time::interval_at(tokio::time::Instant::now() + self.config.poll, self.config.poll);
+        let mut tick = tokio::time::interval_at(
+            tokio::time::Instant::now() + self.config.poll,
+            self.config.poll,
+        );
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut last_ok = Instant::now();
         loop {
@@ -565,7 +568,10 @@ impl Jobs {
             }
         };
         let Some(f) = write else {
-            let _ = self.results.remove_job_attempt(&row.id, lease.attempt).await;
+            let _ = self
+                .results
+                .remove_job_attempt(&row.id, lease.attempt)
+                .await;
             return label;
         };
         match self.db.finish(lease, &f).await {
@@ -581,7 +587,10 @@ impl Jobs {
             }
             Ok(false) => {
                 tracing::warn!(job = %row.id, "lease lost before the result was published; discarded");
-                let _ = self.results.remove_job_attempt(&row.id, lease.attempt).await;
+                let _ = self
+                    .results
+                    .remove_job_attempt(&row.id, lease.attempt)
+                    .await;
                 "lease_lost"
             }
             Err(e) => {
@@ -594,7 +603,9 @@ impl Jobs {
     async fn release(&self, lease: &Lease, uncount: bool) {
         match self.db.release(lease, now_ms(), uncount).await {
             Ok(_) => self.wake.notify_one(),
-            Err(e) => tracing::warn!(job = %lease.id, error = %e, "releasing a lease failed; it will expire"),
+            Err(e) => {
+                tracing::warn!(job = %lease.id, error = %e, "releasing a lease failed; it will expire")
+            }
         }
     }
 }

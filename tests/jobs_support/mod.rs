@@ -156,7 +156,9 @@ impl Server {
         let r = self.get(&format!("/v1/jobs/{id}/results/{name}")).await;
         assert_eq!(r.status(), 200);
         assert_eq!(
-            r.headers().get("content-type").and_then(|v| v.to_str().ok()),
+            r.headers()
+                .get("content-type")
+                .and_then(|v| v.to_str().ok()),
             Some("application/x-npy")
         );
         let bytes = r.bytes().await.expect("bytes");

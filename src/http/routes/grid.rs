@@ -301,7 +301,11 @@ pub async fn distance(
             let decoded = decode_upload(bytes, hint, state.io_limits, "file").await?;
             let meta = state
                 .store
-                .create(Arc::new(decoded.array), decoded.spacing, SourceFormat::from(decoded.format))
+                .create(
+                    Arc::new(decoded.array),
+                    decoded.spacing,
+                    SourceFormat::from(decoded.format),
+                )
                 .await?;
             params.cost.dataset = Some(meta.id);
         }

@@ -360,7 +360,10 @@ pub async fn result(
             StatusCode::CONFLICT,
             "job-not-succeeded",
             "The job has no results",
-            format!("job '{}' is {}; results exist once it succeeded", row.id, row.state),
+            format!(
+                "job '{}' is {}; results exist once it succeeded",
+                row.id, row.state
+            ),
         )
         .with_field("id"));
     }
@@ -388,8 +391,7 @@ pub async fn result(
     }
     let limits = state.jobs.io_limits();
     let (body, media) = tokio::task::spawn_blocking(move || {
-        let decoded =
-            io::decode(&bytes, Some(Format::Npy), &limits).map_err(ApiError::internal)?;
+        let decoded = io::decode(&bytes, Some(Format::Npy), &limits).map_err(ApiError::internal)?;
         encode(&decoded.array, format)
     })
     .await
