@@ -312,3 +312,33 @@ async fn sqlite_job_api() {
     );
     assert!(metrics.contains("geodex_job_failures_total"), "{metrics}");
 }
+
+/// Retention: an ended job and its result files are removed once it expires.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sqlite_jobs_expire_with_their_results() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let s = Server::start(
+        dir.path(),
+        "retention",
+        &["--pool-threads", "1", "--job-retention-secs", "1"],
+    )
+    .await;
+    let small =
+        json!({"cost": {"constant": 1.0, "shape": [20, 20]}, "sources": [{"point": [3.0, 4.0]}]});
+    let id = s
+        .submit(&json!({"operation": "grid.distance", "params": small}))
+        .await;
+    let j = s.wait_final(&id, Duration::from_secs(30)).await;
+    assert_eq!(j["state"], "succeeded", "{j}");
+    assert_eq!(attempt_dirs(&dir.path().join("results"), &id), 1);
+    let t = Instant::now();
+    loop {
+        let r = s.get(&format!("/v1/jobs/{id}")).await;
+        if r.status() == 404 {
+            break;
+        }
+        assert!(t.elapsed() < Duration::from_secs(10), "job not swept");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(attempt_dirs(&dir.path().join("results"), &id), 0);
+}
