@@ -26,6 +26,7 @@ use crate::config::ServeArgs;
 use crate::datasets::{DatasetStore, StoreConfig};
 use crate::http::{self, AppState};
 use crate::io::Limits;
+use crate::jobs::Jobs;
 use crate::ops::OpLimits;
 use crate::pool::SolverPool;
 use crate::telemetry;
@@ -65,13 +66,25 @@ impl Application {
         .with_context(|| format!("opening the data directory {}", settings.data_dir.display()))?;
         let pool = SolverPool::new(settings.threads(), settings.capacity())
             .context("starting the solver pool")?;
+        let store = Arc::new(store);
+        let pool = Arc::new(pool);
+        let op_limits = OpLimits {
+            max_cells: settings.max_cells,
+            ..OpLimits::default()
+        };
+        let jobs = Jobs::open(
+            settings.jobs_config(),
+            Arc::clone(&store),
+            Arc::clone(&pool),
+            op_limits,
+            io_limits(&settings),
+        )
+        .await
+        .context("opening the job queue")?;
         let state = AppState {
-            store: Arc::new(store),
-            pool: Arc::new(pool),
-            op_limits: OpLimits {
-                max_cells: settings.max_cells,
-                ..OpLimits::default()
-            },
+            store,
+            pool,
+            op_limits,
             io_limits: io_limits(&settings),
             solve_timeout: settings.request_timeout(),
             draining: Arc::new(AtomicBool::new(false)),
@@ -79,6 +92,8 @@ impl Application {
             path_cache: Arc::new(crate::ops::grid_paths::DistanceCache::new(
                 settings.path_cache_bytes,
             )),
+
+            jobs: Arc::new(jobs),
         };
         let router = http::router(state.clone(), &settings);
         let listener = TcpListener::bind(settings.addr)
@@ -118,13 +133,17 @@ impl Application {
         tracing::info!(api = %format!("http://{addr}/v1"), docs = %format!("http://{addr}/docs"),
             openapi = %format!("http://{addr}/openapi.json"), "geodex listening");
         let sweeper = tokio::spawn(sweep(self.state.clone(), self.sweep_every));
+        let jobs = Arc::clone(&self.state.jobs);
+        let workers = jobs.start();
         let draining = Arc::clone(&self.state.draining);
+        let stop_jobs = Arc::clone(&self.state.jobs);
         let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
         let shutdown = self.shutdown;
         let signal = async move {
             shutdown.await;
             tracing::info!("shutting down: draining in-flight requests");
             draining.store(true, Ordering::SeqCst);
+            stop_jobs.begin_shutdown();
             let _ = stop_tx.send(true);
         };
         let server = axum::serve(self.listener, self.router).with_graceful_shutdown(signal);
@@ -142,6 +161,10 @@ impl Application {
             }
         };
         sweeper.abort();
+        // SIGTERM releases the leases of running jobs: another replica (or
+        // this one after a restart) runs them again at once.
+        jobs.shutdown(workers, Duration::from_secs(5).min(grace))
+            .await;
         result
     }
 }

@@ -55,6 +55,43 @@ pub struct ServeArgs {
     /// Log one JSON object per line instead of human-readable text.
     #[arg(long, env = "GEODEX_LOG_JSON")]
     pub log_json: bool,
+    /// The job queue: `sqlite` (the file `<data-dir>/jobs.sqlite`),
+    /// `sqlite:///path/jobs.db`, or `postgres://user@host:port/db` to share
+    /// one queue between replicas.
+    #[arg(long, env = "GEODEX_QUEUE", default_value = "sqlite")]
+    pub queue: String,
+    /// Where job results are stored: `file` (`<data-dir>/results`),
+    /// `file:///shared/dir`, or `s3://bucket/prefix` (built with `--features s3`).
+    #[arg(long, env = "GEODEX_STORE", default_value = "file")]
+    pub store: String,
+    /// Jobs this process runs at once; 0 makes it an API-only replica.
+    /// Default: the solver pool's threads.
+    #[arg(long, env = "GEODEX_JOB_WORKERS")]
+    pub job_workers: Option<usize>,
+    /// Lease of a running job in seconds (fractions allowed): a job whose
+    /// process died runs again this long after its last heartbeat.
+    #[arg(long, env = "GEODEX_JOB_LEASE_SECS", default_value_t = 30.0)]
+    pub job_lease_secs: f64,
+    /// Heartbeat period of a running job in milliseconds: progress writes,
+    /// lease renewal and cancellation polling.
+    #[arg(long, env = "GEODEX_JOB_POLL_MS", default_value_t = 250)]
+    pub job_poll_ms: u64,
+    /// Attempts of a job whose process keeps dying before it is failed.
+    #[arg(long, env = "GEODEX_JOB_MAX_ATTEMPTS", default_value_t = 3)]
+    pub job_max_attempts: u32,
+    /// Time limit of a job that names none, in seconds.
+    #[arg(long, env = "GEODEX_JOB_TIME_LIMIT_SECS", default_value_t = 3600.0)]
+    pub job_time_limit_secs: f64,
+    /// Largest time limit a job may ask for, in seconds.
+    #[arg(
+        long,
+        env = "GEODEX_JOB_MAX_TIME_LIMIT_SECS",
+        default_value_t = 86400.0
+    )]
+    pub job_max_time_limit_secs: f64,
+    /// How long ended jobs and their results are kept, in seconds.
+    #[arg(long, env = "GEODEX_JOB_RETENTION_SECS", default_value_t = 7 * 24 * 3600)]
+    pub job_retention_secs: u64,
 }
 
 impl Default for ServeArgs {
@@ -76,6 +113,15 @@ impl Default for ServeArgs {
             cors_origins: Vec::new(),
             shutdown_grace_secs: 30,
             log_json: false,
+            queue: "sqlite".into(),
+            store: "file".into(),
+            job_workers: None,
+            job_lease_secs: 30.0,
+            job_poll_ms: 250,
+            job_max_attempts: 3,
+            job_time_limit_secs: 3600.0,
+            job_max_time_limit_secs: 86400.0,
+            job_retention_secs: 7 * 24 * 3600,
         }
     }
 }
@@ -97,5 +143,24 @@ impl ServeArgs {
     pub fn request_timeout(&self) -> std::time::Duration {
         std::time::Duration::try_from_secs_f64(self.request_timeout_secs.max(0.0))
             .unwrap_or(std::time::Duration::MAX)
+    }
+
+    /// Settings of the job system.
+    pub fn jobs_config(&self) -> crate::jobs::JobsConfig {
+        let secs = |s: f64| {
+            std::time::Duration::try_from_secs_f64(s.max(0.001)).unwrap_or(std::time::Duration::MAX)
+        };
+        crate::jobs::JobsConfig {
+            queue: self.queue.clone(),
+            store: self.store.clone(),
+            data_dir: self.data_dir.clone(),
+            workers: self.job_workers.unwrap_or_else(|| self.threads()),
+            lease: secs(self.job_lease_secs),
+            poll: std::time::Duration::from_millis(self.job_poll_ms.max(10)),
+            max_attempts: self.job_max_attempts.max(1),
+            default_time_limit: secs(self.job_time_limit_secs),
+            max_time_limit: secs(self.job_max_time_limit_secs),
+            retention: std::time::Duration::from_secs(self.job_retention_secs.max(1)),
+        }
     }
 }

@@ -242,12 +242,38 @@ impl DatasetStore {
     }
 
     /// The metadata of a live dataset.
+    ///
+    /// A dataset this process does not know yet is looked up on disk: when
+    /// several replicas share the data directory, one of them may have
+    /// written it after this one started.
     pub fn meta(&self, id: &str) -> Result<DatasetMeta, StoreError> {
-        let index = lock(&self.index);
-        match index.entries.get(id) {
-            Some(m) if m.expires_at > Utc::now() => Ok(m.clone()),
-            _ => Err(StoreError::NotFound(id.into())),
+        {
+            let index = lock(&self.index);
+            match index.entries.get(id) {
+                Some(m) if m.expires_at > Utc::now() => return Ok(m.clone()),
+                Some(_) => return Err(StoreError::NotFound(id.into())),
+                None => {}
+            }
         }
+        self.discover(id)
+    }
+
+    /// Adds a dataset written by another process sharing the directory.
+    fn discover(&self, id: &str) -> Result<DatasetMeta, StoreError> {
+        if !valid_id(id) {
+            return Err(StoreError::NotFound(id.into()));
+        }
+        let meta = std::fs::read(self.root.join(id).join("meta.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice::<DatasetMeta>(&b).ok())
+            .filter(|m| m.id == id && m.expires_at > Utc::now())
+            .ok_or_else(|| StoreError::NotFound(id.into()))?;
+        let mut index = lock(&self.index);
+        if !index.entries.contains_key(id) {
+            index.used += meta.byte_size;
+            index.entries.insert(id.to_string(), meta.clone());
+        }
+        Ok(meta)
     }
 
     /// Stores an array (blocking): NPY + `meta.json`, written atomically.

@@ -8,6 +8,8 @@
 //!   the HTTP endpoints, the job queue and the command line.
 //! * [`pool`]: the shared solver pool (rayon), admission control, deadlines.
 //! * [`datasets`]: the dataset store (files under the data directory).
+//! * [`jobs`]: durable background jobs (SQLite or PostgreSQL queue, results
+//!   in an object store).
 //! * [`http`]: the axum router, problem+json errors, the OpenAPI contract.
 //! * [`app`], [`config`], [`telemetry`]: start-up, settings and logs.
 //! * [`cli`]: the `geodex` command (serve, distance, bench).
@@ -18,6 +20,7 @@ pub mod config;
 pub mod datasets;
 pub mod http;
 pub mod io;
+pub mod jobs;
 pub mod numerics;
 pub mod ops;
 pub mod pool;

@@ -12,6 +12,11 @@
 //! * `geodex_pool_queue_depth` (gauge: admitted solves not yet started)
 //! * `geodex_pool_in_flight` (gauge: solves running on the pool)
 //! * `geodex_pool_rejected_total` (counter: solves refused with 503)
+//! * `geodex_jobs{state}` (gauge: jobs in each state, read from the job database)
+//! * `geodex_job_queue_wait_seconds{operation}` (histogram: submission to first start)
+//! * `geodex_job_run_seconds{operation,outcome}` (histogram: one attempt)
+//! * `geodex_job_failures_total{operation,reason}` (counter: jobs that ended `failed`)
+//! * `geodex_job_retries_total{operation}` (counter: jobs run again after their worker died)
 
 use std::sync::OnceLock;
 
@@ -63,6 +68,12 @@ pub fn metrics_handle() -> PrometheusHandle {
                 .set_buckets_for_metric(Matcher::Full(HTTP_DURATION.into()), HTTP_BUCKETS)
                 .and_then(|b| {
                     b.set_buckets_for_metric(Matcher::Full(SOLVE_SECONDS.into()), SOLVE_BUCKETS)
+                })
+                .and_then(|b| {
+                    b.set_buckets_for_metric(
+                        Matcher::Prefix("geodex_job_".into()),
+                        crate::jobs::METRIC_BUCKETS,
+                    )
                 });
             let builder = match builder {
                 Ok(b) => b,

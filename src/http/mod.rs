@@ -51,6 +51,9 @@ pub struct AppState {
     pub metrics: PrometheusHandle,
     /// Designed costs and distance maps kept for later minimal-path requests.
     pub path_cache: Arc<crate::ops::grid_paths::DistanceCache>,
+
+    /// The durable job queue.
+    pub jobs: Arc<crate::jobs::Jobs>,
 }
 
 impl AppState {
@@ -80,6 +83,10 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
         .routes(routes!(routes::health::metrics))
+        .routes(routes!(routes::jobs::submit, routes::jobs::list))
+        .routes(routes!(routes::jobs::get))
+        .routes(routes!(routes::jobs::cancel))
+        .routes(routes!(routes::jobs::result))
 }
 
 /// The complete application: API routes, `/openapi.json`, `/docs`, the

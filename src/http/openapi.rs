@@ -30,6 +30,7 @@ Every error is an RFC 9457 `application/problem+json` document naming the offend
         (name = "datasets", description = "Upload, inspect, download and delete arrays."),
         (name = "grid", description = "Operations on 2D and 3D grids."),
         (name = "operations", description = "Health, readiness and metrics."),
+        (name = "jobs", description = "Durable background jobs: submit any operation, poll, cancel, download results."),
     ),
     components(
         schemas(Problem, FileBytes),
@@ -44,6 +45,7 @@ Every error is an RFC 9457 `application/problem+json` document naming the offend
             Busy,
             DeadlineExceeded,
             InsufficientStorage,
+            Conflict,
         )
     )
 )]
@@ -206,6 +208,22 @@ pub struct DeadlineExceeded(#[allow(dead_code)] Problem);
     })
 )]
 pub struct InsufficientStorage(#[allow(dead_code)] Problem);
+
+/// The resource is not in a state that allows this (a job already ended, or has no results yet).
+#[derive(ToResponse)]
+#[response(
+    content_type = "application/problem+json",
+    example = json!({
+        "type": "https://geodex.dev/problems/job-finished",
+        "title": "The job already ended",
+        "status": 409,
+        "detail": "job 'job_0192f1b27c1e7d3a9d553c0f2b8a1e44' already succeeded; there is nothing to cancel",
+        "instance": "/v1/jobs/job_0192f1b27c1e7d3a9d553c0f2b8a1e44/cancel",
+        "request_id": "0192f1b2-7c1e-7d3a-9d55-3c0f2b8a1e44",
+        "field": "id"
+    })
+)]
+pub struct Conflict(#[allow(dead_code)] Problem);
 
 /// Raw file bytes: the schema of binary request and response bodies
 /// (`type: string, format: binary`).

@@ -250,7 +250,9 @@ The cost is a dataset (`cost.dataset`) or a constant over a shape. \
 One-round-trip form: send `multipart/form-data` with a `file` part (the cost array) and a `params` part \
 (this JSON with `cost.dataset` omitted or `\"file\"`). With `Accept: application/x-npy` (or `?format=npy`) \
 the answer is the distance array itself as NPY. The solve runs on a bounded pool: when it is full the answer \
-is 503 with `Retry-After`; a solve that passes the deadline is cancelled (504).",
+is 503 with `Retry-After`; a solve that passes the deadline is cancelled (504). \
+With `Prefer: respond-async` the request is queued as an `interactive` job instead: the answer is 202 with \
+`Location: /v1/jobs/{id}` and `Retry-After` (see `POST /v1/jobs`).",
     params(DistanceQuery),
     request_body(
         description = "The request (JSON), or a multipart form with the cost file and the request.",
@@ -266,6 +268,12 @@ is 503 with `Retry-After`; a solve that passes the deadline is cancelled (504)."
                 (crate::http::openapi::FileBytes = "application/x-npy"),
             )
         ),
+        (status = 202, description = "With `Prefer: respond-async`: the request was queued as a job.",
+            body = crate::jobs::Job,
+            headers(
+                ("Location" = String, description = "URL of the job."),
+                ("Retry-After" = u64, description = "Seconds to wait before polling."),
+            )),
         (status = 400, response = crate::http::openapi::BadRequest),
         (status = 404, response = crate::http::openapi::NotFound),
         (status = 413, response = crate::http::openapi::PayloadTooLarge),
@@ -285,8 +293,24 @@ pub async fn distance(
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
     let direct = wants_npy(&query, &headers);
-    let DistanceBody { params, file } = body;
+    let DistanceBody { mut params, file } = body;
     params.validate(&state.op_limits)?;
+    if super::jobs::prefers_async(&headers) {
+        if let Some((bytes, hint)) = file {
+            // A job reads datasets only: store the uploaded cost as one first.
+            let decoded = decode_upload(bytes, hint, state.io_limits, "file").await?;
+            let meta = state
+                .store
+                .create(
+                    Arc::new(decoded.array),
+                    decoded.spacing,
+                    SourceFormat::from(decoded.format),
+                )
+                .await?;
+            params.cost.dataset = Some(meta.id);
+        }
+        return super::jobs::respond_async(&state, &headers, &params).await;
+    }
 
     let mut inputs: HashMap<String, InputArray> = HashMap::new();
     if let Some((bytes, hint)) = file {

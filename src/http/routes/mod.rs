@@ -7,6 +7,7 @@
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
+//! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
 
 pub mod datasets;
 pub mod docs;
@@ -15,3 +16,5 @@ pub mod health;
 pub mod metric;
 pub mod paths;
 pub mod segment;
+
+pub mod jobs;
