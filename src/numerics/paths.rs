@@ -193,6 +193,9 @@ pub struct SourceSet {
     by_cell: HashMap<usize, Vec<(usize, [f64; 3])>>,
     /// The point sources (index, position), for the local solution around them.
     points: Vec<(usize, [f64; 3])>,
+    /// Bounding box (index coordinates) of every source point and cell.
+    lo: [f64; 3],
+    hi: [f64; 3],
 }
 
 impl SourceSet {
@@ -231,12 +234,37 @@ impl SourceSet {
                 }
             }
         }
-        Ok(Self { by_cell, points })
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for list in by_cell.values() {
+            for (_, p) in list {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+        }
+        Ok(Self {
+            by_cell,
+            points,
+            lo,
+            hi,
+        })
+    }
+
+    /// False when `x` is farther than `radius` from the box of the sources
+    /// (no lookup needed: the common case along a long descent).
+    #[inline]
+    fn may_be_near(&self, x: [f64; 3], radius: f64) -> bool {
+        (0..3).all(|k| x[k] >= self.lo[k] - radius && x[k] <= self.hi[k] + radius)
     }
 
     /// The nearest point source within `radius` (index units) of `x`.
     fn near_point(&self, grid: &Grid, x: [f64; 3], radius: f64) -> Option<[f64; 3]> {
         let d2 = |p: &[f64; 3]| -> f64 { (0..3).map(|k| (p[k] - x[k]).powi(2)).sum() };
+        if self.points.is_empty() || !self.may_be_near(x, radius) {
+            return None;
+        }
         if self.points.len() <= 16 {
             return self
                 .points
@@ -253,6 +281,9 @@ impl SourceSet {
 
     /// The nearest source point within `radius` (index units) of `x`, with its index.
     fn near(&self, grid: &Grid, x: [f64; 3], radius: f64) -> Option<(usize, [f64; 3])> {
+        if !self.may_be_near(x, radius) {
+            return None;
+        }
         let shape = grid.shape3();
         let r = radius.ceil() as isize;
         let c = x.map(|v| v.round() as isize);
@@ -318,8 +349,9 @@ pub struct DistanceMap<'a, C: CellCost + ?Sized> {
 }
 
 impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
-    /// Wraps a solve's output; `u` has one value per cell (`+inf` where
-    /// unreached) and `cost` gives `W` per cell (one value per cell).
+    /// Wraps a solve's output; `u` has one value per cell, `+inf` where
+    /// unreached and on every wall (as [`super::solve`] returns it), and
+    /// `cost` gives `W` per cell (one value per cell).
     pub fn new(grid: &'a Grid, u: &'a [f64], cost: &'a C) -> Result<Self, PathError> {
         if u.len() != grid.len() {
             return Err(PathError::Length {
@@ -336,12 +368,8 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
         if (0..3).any(|k| c[k] < 0 || c[k] >= s[k] as isize) {
             return f64::INFINITY;
         }
-        let i = self.grid.linear(c.map(|v| v as usize));
-        if self.cost.cost_at(i) == f64::INFINITY {
-            f64::INFINITY
-        } else {
-            self.u[i]
-        }
+        // Walls have U = +inf in every solver's output (see [`DistanceMap::new`]).
+        self.u[self.grid.linear(c.map(|v| v as usize))]
     }
 
     /// The upwind / centred gradient of `U` at a cell (see the module docs).
