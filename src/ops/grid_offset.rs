@@ -194,7 +194,7 @@ impl Operation for GridOffsetRequest {
                                 u[c] <= r
                             } else {
                                 // `u` is never NaN (unreached: +inf), so this is `!(u <= r)`.
-                            mask[c] && u[c] > r
+                                mask[c] && u[c] > r
                             }
                         })
                         .collect();
