@@ -367,9 +367,9 @@ fn thin_2d(m: &mut [bool], n0: usize, n1: usize) {
                     }
                     let (p2, p4, p6, p8) = (p[0], p[2], p[4], p[6]);
                     let ok = if pass == 0 {
-                        !(p2 && p4 && p6) && !(p4 && p6 && p8)
+                        !(p4 && p6 && (p2 || p8))
                     } else {
-                        !(p2 && p4 && p8) && !(p2 && p6 && p8)
+                        !(p2 && p8 && (p4 || p6))
                     };
                     if ok {
                         del.push(c);

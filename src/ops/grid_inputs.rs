@@ -86,7 +86,7 @@ pub fn mask_of(input: &InputArray, field: &str, grid: &Grid) -> Result<Vec<bool>
             ),
         ));
     }
-    if input.array.len() > 0 && input.array.get_f64(0).is_none() {
+    if !input.array.is_empty() && input.array.get_f64(0).is_none() {
         return Err(OpError::invalid(
             field,
             "the dataset is not in standard layout",

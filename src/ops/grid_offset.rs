@@ -193,7 +193,8 @@ impl Operation for GridOffsetRequest {
                             if dilate {
                                 u[c] <= r
                             } else {
-                                mask[c] && !(u[c] <= r)
+                                // `u` is never NaN (unreached: +inf), so this is `!(u <= r)`.
+                                mask[c] && u[c] > r
                             }
                         })
                         .collect();

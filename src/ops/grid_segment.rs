@@ -223,6 +223,9 @@ fn rename_source_field(e: OpError, origin: &[String]) -> OpError {
     }
 }
 
+/// The polygons (rings of `[axis 0, axis 1]` vertices) and the cell count of one label.
+type LabelPolygons = (Vec<Vec<Vec<[f64; 2]>>>, usize);
+
 /// A GeoJSON FeatureCollection with one MultiPolygon per label of a 2D label
 /// map (`-1`, unreached, is left out). Positions are `[axis 0, axis 1]` in index units.
 pub fn label_contours(labels: &[i32], shape: [usize; 2]) -> serde_json::Value {
@@ -239,7 +242,7 @@ pub fn label_contours(labels: &[i32], shape: [usize; 2]) -> serde_json::Value {
             "truncated": format!("{vertices} vertices, more than {MAX_CONTOUR_VERTICES}; fetch the label map instead"),
         });
     }
-    let mut by_label: BTreeMap<i64, (Vec<Vec<Vec<[f64; 2]>>>, usize)> = BTreeMap::new();
+    let mut by_label: BTreeMap<i64, LabelPolygons> = BTreeMap::new();
     for p in polys {
         let e = by_label.entry(p.label).or_default();
         e.0.push(p.rings);

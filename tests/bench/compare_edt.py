@@ -32,7 +32,7 @@ except ImportError:  # pragma: no cover
 from scipy import ndimage
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-GEODEX = os.path.join(ROOT, "target", "release", "geodex")
+GEODEX = os.environ.get("GEODEX_BIN", os.path.join(ROOT, "target", "release", "geodex"))
 
 
 def best(f, repeat):
