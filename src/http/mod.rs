@@ -68,6 +68,8 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         ))
         .routes(routes!(routes::datasets::get_data))
         .routes(routes!(routes::grid::distance))
+        .routes(routes!(routes::tensor::tensor_distance))
+        .routes(routes!(routes::tensor::tensor_metric))
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
         .routes(routes!(routes::health::metrics))

@@ -21,7 +21,9 @@
 //! * [`exact`]: closed-form geodesic distances used as test oracles and in benchmarks.
 //! * [`filters`]: Gaussian smoothing, gradients and Hessians (metric design).
 //! * [`mesh`]: triangle meshes and their topology (surface solvers).
+//! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
 
+pub mod anisotropic;
 pub mod control;
 pub mod eikonal;
 pub mod exact;

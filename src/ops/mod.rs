@@ -5,8 +5,14 @@
 //! Nothing here does IO: input datasets are handed in through [`Inputs`].
 //!
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
+//! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
+//! * [`grid_tensor_metric`]: `grid.tensor_metric`, a tensor field (or a designed metric) as a dataset.
+//! * [`tensor_spec`]: the `tensor` section shared by both.
 
 pub mod grid_distance;
+pub mod grid_tensor_distance;
+pub mod grid_tensor_metric;
+pub mod tensor_spec;
 
 use std::sync::Arc;
 

@@ -3,9 +3,11 @@
 //! * [`health`]: `/healthz`, `/readyz`, `/metrics`.
 //! * [`datasets`]: `/v1/datasets` upload, metadata, data, delete.
 //! * [`grid`]: `POST /v1/grid/distance`.
+//! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 
 pub mod datasets;
 pub mod docs;
 pub mod grid;
 pub mod health;
+pub mod tensor;
