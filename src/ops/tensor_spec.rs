@@ -326,7 +326,7 @@ impl TensorSpec {
                     shape.ok_or_else(|| OpError::invalid(format!("{prefix}.shape"), "missing"))?;
                 if shape.len() != 2 {
                     return Err(OpError::invalid(
-                        format!("{prefix}"),
+                        prefix.to_string(),
                         "the energy / anisotropy form is 2D",
                     ));
                 }

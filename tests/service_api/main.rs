@@ -6,3 +6,4 @@ mod errors;
 mod flow;
 mod load;
 mod openapi;
+mod tensor;

@@ -319,7 +319,7 @@ impl Descent<'_> {
         let d2 = self.direction(clamp(mid)).unwrap_or(d1);
         let mut d = [0, 1, 2].map(|k| d1[k] + d2[k]);
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if !(n > 1e-12) {
+        if n.is_nan() || n <= 1e-12 {
             d = d1;
         } else {
             d = d.map(|c| c / n);

@@ -48,6 +48,8 @@
 //! `min_y U(y) + ‖x − y‖_{M(x)}` over their `3ᵈ − 1` immediate neighbours,
 //! so that every reachable cell is reached (monotone and causal, first order).
 
+#![allow(clippy::needless_range_loop)] // 3×3 index loops read best as such
+
 use super::stencil::{Stencils, NEIGHBOURS, NONE};
 use super::{TensorError, TensorOptions, TensorProblem, TensorSolveError};
 use crate::numerics::control::Control;
@@ -274,7 +276,7 @@ pub(super) fn solve(
             o[i] = frozen as i64;
         }
         frozen += 1;
-        if frozen % 8192 == 0 {
+        if frozen.is_multiple_of(8192) {
             if control.is_cancelled() {
                 return Err(TensorSolveError::Cancelled);
             }
@@ -477,6 +479,12 @@ impl Ctx<'_> {
         };
         let mut terms = [Term::default(); 6];
         let mut nt = 0;
+        // Factored: offsets whose upwind neighbour is present but not frozen
+        // yet (a neighbour at the same distance, or a long offset near the
+        // source) keep `ρ ⟨∇U_0, e⟩²`, i.e. `∂_e V ≈ 0`, instead of dropping
+        // the term (the isotropic engine's rule on the grid line nearest to
+        // an off-grid source, for every offset).
+        let mut fixed_part = 0.0;
         for s in 0..k {
             let rho = self.st.rho[y * k + s];
             if rho <= 0.0 {
@@ -535,21 +543,63 @@ impl Ctx<'_> {
             if let Some(t) = best {
                 terms[nt] = t;
                 nt += 1;
+            } else if fp.is_some() {
+                for side in 0..2 {
+                    let j = self.st.nb[(y * k + s) * 2 + side];
+                    if j == NONE {
+                        continue;
+                    }
+                    let xj = self.pos(j as usize);
+                    let dg = g[0] * (x[0] - xj[0]) + g[1] * (x[1] - xj[1]) + g[2] * (x[2] - xj[2]);
+                    // Only where factoring itself hides the neighbour: it
+                    // is upwind along `e` yet not closer to the source.
+                    let hidden = fp.as_ref().is_some_and(|f| f.at(xj) >= u0x - 1e-12 * u0x);
+                    if dg > 0.0 && hidden {
+                        fixed_part += rho * dg * dg;
+                    }
+                }
             }
         }
-        solve_terms(&mut terms[..nt])
+        if fp.is_none() {
+            return solve_terms(&mut terms[..nt], 1.0);
+        }
+        let rhs = if fixed_part < 0.5 {
+            1.0 - fixed_part
+        } else {
+            1.0
+        };
+        // Factored: a neighbour whose own value lies above the root is not
+        // upwind (its shifted `b` is below `a`); drop it and solve again, as
+        // the plain scheme drops the terms with `b ≥ U`.
+        loop {
+            let (root, label, min_a) = solve_terms(&mut terms[..nt], rhs)?;
+            if min_a <= root {
+                return Some((root, label, min_a));
+            }
+            let mut kept = 0;
+            for m in 0..nt {
+                if terms[m].a <= root {
+                    terms[kept] = terms[m];
+                    kept += 1;
+                }
+            }
+            if kept == 0 || kept == nt {
+                return Some((root, label, min_a));
+            }
+            nt = kept;
+        }
     }
 }
 
 /// The root `U > min b` of `Σ c2 ((U − b)⁺)² = 1`, adding terms in
 /// increasing `b`; the label is that of the term contributing most, and the
 /// smallest neighbour value among the terms used.
-fn solve_terms(t: &mut [Term]) -> Option<(f64, i32, f64)> {
+fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
     if t.is_empty() {
         return None;
     }
     t.sort_unstable_by(|a, b| a.b.total_cmp(&b.b));
-    let (mut a, mut bb, mut c) = (0.0, 0.0, -1.0);
+    let (mut a, mut bb, mut c) = (0.0, 0.0, -rhs);
     let mut root = f64::INFINITY;
     let mut used = 0;
     for (m, term) in t.iter().enumerate() {
@@ -637,12 +687,12 @@ mod tests {
     #[test]
     fn one_term_and_two_equal_terms() {
         let mut t = [term(2.0, 0)];
-        assert_eq!(solve_terms(&mut t), Some((3.0, 0, 2.0)));
+        assert_eq!(solve_terms(&mut t, 1.0), Some((3.0, 0, 2.0)));
         let mut t = [term(0.0, 0), term(0.0, 1)];
-        let (r, _, _) = solve_terms(&mut t).unwrap();
+        let (r, _, _) = solve_terms(&mut t, 1.0).unwrap();
         assert!((r - 0.5f64.sqrt()).abs() < 1e-15);
         // A far upwind value is dropped (causality).
         let mut t = [term(0.0, 0), term(5.0, 1)];
-        assert_eq!(solve_terms(&mut t), Some((1.0, 0, 0.0)));
+        assert_eq!(solve_terms(&mut t, 1.0), Some((1.0, 0, 0.0)));
     }
 }

@@ -119,6 +119,9 @@ pub fn dual_index_metric(m: &[f64], h: &[f64]) -> Vec<f64> {
     ]
 }
 
+/// The weights and padded 3D offsets of one cell.
+type Decomposition = [(f64, [i64; 3]); 6];
+
 /// Offsets of one cell in padded 3D index units, with their weights.
 fn decompose(ndim: usize, dual: &[f64], out: &mut [(f64, [i64; 3]); 6]) -> usize {
     if ndim == 2 {
@@ -154,7 +157,7 @@ pub fn build(
     let mut second = vec![0u16; n];
     let mut fallback = vec![0u32; n];
     let mut max_offset = 0i32;
-    let mut cached: Option<(usize, [(f64, [i64; 3]); 6])> = None;
+    let mut cached: Option<(usize, Decomposition)> = None;
     let mut dec = [(0.0, [0i64; 3]); 6];
     for i in 0..n {
         if i % 16_384 == 0 && control.is_cancelled() {
