@@ -40,6 +40,7 @@ use std::time::Instant;
 use clap::Args;
 use serde_json::json;
 
+use super::bench_tensor::TensorKind;
 use crate::numerics::eikonal::{Connectivity, Method, Order};
 use crate::numerics::exact;
 use crate::numerics::metric::{CostValues, Interpretation};
@@ -93,6 +94,8 @@ enum Kind {
     Poincare2,
     Random2,
     Point3,
+    /// Anisotropic cases (issue 7), see [`super::bench_tensor`].
+    Tensor(super::bench_tensor::TensorKind),
 }
 
 impl Kind {
@@ -102,11 +105,17 @@ impl Kind {
             Kind::Poincare2 => "poincare2d",
             Kind::Random2 => "random2d",
             Kind::Point3 => "point3d",
+            Kind::Tensor(t) => match t {
+                TensorKind::Aniso2 => "tensor2d",
+                TensorKind::Aniso3 => "tensor3d",
+                TensorKind::SmoothIso2 => "smoothiso2d",
+                TensorKind::TensorIso2 => "tensoriso2d",
+            },
         }
     }
 
     fn dims(self) -> usize {
-        if self == Kind::Point3 {
+        if self == Kind::Point3 || self == Kind::Tensor(TensorKind::Aniso3) {
             3
         } else {
             2
@@ -208,6 +217,39 @@ fn all_cases(quick: bool) -> Vec<Case> {
     }
     out.push(case(Kind::Poincare2, n2, Dijkstra, First, Diagonal));
     out.push(case(Kind::Random2, n2, Dijkstra, First, Diagonal));
+    // Issue 7: HFM's Riemann2 1001² / Riemann3 101³ settings, and the tensor
+    // engine side by side with the isotropic one on an isotropic field.
+    let (t2, t3) = if quick { (256, 48) } else { (1001, 101) };
+    for order in [First, Second] {
+        out.push(case(
+            Kind::Tensor(TensorKind::Aniso2),
+            t2,
+            Fmm,
+            order,
+            Diagonal,
+        ));
+        out.push(case(
+            Kind::Tensor(TensorKind::Aniso3),
+            t3,
+            Fmm,
+            order,
+            Diagonal,
+        ));
+        out.push(case(
+            Kind::Tensor(TensorKind::SmoothIso2),
+            t2,
+            Fmm,
+            order,
+            Diagonal,
+        ));
+        out.push(case(
+            Kind::Tensor(TensorKind::TensorIso2),
+            t2,
+            Fmm,
+            order,
+            Diagonal,
+        ));
+    }
     out
 }
 
@@ -257,6 +299,7 @@ fn setup(kind: Kind, n: usize) -> Result<Setup, String> {
                 })),
             }
         }
+        Kind::Tensor(_) => return Err("tensor cases are set up by bench_tensor".into()),
         Kind::Random2 => {
             let mut state = 42u64;
             let w = (0..n * n).map(|_| 1.0 + uniform(&mut state)).collect();
@@ -291,6 +334,18 @@ struct Measured {
 }
 
 fn measure(case: &Case, repeat: u32) -> Result<Measured, String> {
+    if let Kind::Tensor(kind) = case.kind {
+        let m = super::bench_tensor::measure(kind, case.n, case.order, repeat)?;
+        return Ok(Measured {
+            seconds: m.seconds,
+            // The tensor-vs-isotropic difference where there is one.
+            max_error: m.max_difference,
+            mean_error: None,
+            peak_bytes_per_cell: None,
+            frozen: m.frozen,
+            sweeps: None,
+        });
+    }
     let s = setup(case.kind, case.n)?;
     let cost = match &s.cost {
         Some(w) => IsotropicCost::new(

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 use crate::config::ServeArgs;
 
 pub mod bench;
+mod bench_tensor;
 pub mod distance;
 pub mod path;
 pub mod segment;

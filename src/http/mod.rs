@@ -80,6 +80,8 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::segment::plan))
         .routes(routes!(routes::metric::metric))
         .routes(routes!(routes::paths::paths))
+        .routes(routes!(routes::tensor::tensor_distance))
+        .routes(routes!(routes::tensor::tensor_metric))
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
         .routes(routes!(routes::health::metrics))

@@ -43,6 +43,8 @@ pub const ENTRIES: &[Entry] = &[
     entry::<crate::ops::grid_skeleton::GridSkeletonRequest>(),
     entry::<crate::ops::grid_offset::GridOffsetRequest>(),
     entry::<crate::ops::grid_plan::GridPlanRequest>(),
+    entry::<crate::ops::grid_tensor_distance::GridTensorDistanceRequest>(),
+    entry::<crate::ops::grid_tensor_metric::GridTensorMetricRequest>(),
 ];
 
 /// The entry of an operation.

@@ -28,7 +28,9 @@
 //! * [`planning`]: motion planning for a disc robot (clearance, widest robot, safe paths).
 //! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
+//! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
 
+pub mod anisotropic;
 pub mod contours;
 pub mod control;
 pub mod edt;

@@ -9,6 +9,9 @@
 //!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
+//! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
+//! * [`grid_tensor_metric`]: `grid.tensor_metric`, a tensor field (or a designed metric) as a dataset.
+//! * [`tensor_spec`]: the `tensor` section shared by both.
 
 pub mod grid_distance;
 pub mod grid_edt;
@@ -19,6 +22,9 @@ pub mod grid_paths;
 pub mod grid_plan;
 pub mod grid_segment;
 pub mod grid_skeleton;
+pub mod grid_tensor_distance;
+pub mod grid_tensor_metric;
+pub mod tensor_spec;
 
 use std::sync::Arc;
 

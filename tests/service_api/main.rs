@@ -8,3 +8,5 @@ mod load;
 mod openapi;
 mod paths;
 mod segment;
+
+mod tensor;

@@ -6,6 +6,8 @@
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
+
+//! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
 
@@ -18,3 +20,5 @@ pub mod paths;
 pub mod segment;
 
 pub mod jobs;
+
+pub mod tensor;

@@ -1,0 +1,316 @@
+//! `grid.tensor_distance`: the Riemannian distance map `U` (and Voronoi
+//! labels, and minimal paths) of a tensor metric on a 2D or 3D grid.
+//!
+//! Coordinates are in array index order (axis 0 first) and in index units;
+//! physical lengths are index offsets times the per-axis `spacing`.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::grid_distance::{stop_name, OutputSpec, SourceSpec, StopSpec};
+use super::tensor_spec::{tensor_error, TensorSpec};
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use crate::io::ArrayData;
+use crate::numerics::anisotropic::descent::{minimal_path, DescentOptions};
+use crate::numerics::anisotropic::{solve, TensorOptions, TensorProblem, TensorSolveError};
+use crate::numerics::{Control, Grid, Order, Source, StopRules};
+
+/// Request of `grid.tensor_distance` (`POST /v1/grid/tensor-distance`, job
+/// operation `grid.tensor_distance`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "tensor": {"kind": "eigen", "shape": [256, 256], "eigenvalues": [1.0, 100.0], "direction": [1.0, 1.0]},
+    "sources": [{"point": [128.0, 128.0]}],
+    "paths": [[20.0, 200.0]]
+}))]
+pub struct GridTensorDistanceRequest {
+    /// The metric tensor field.
+    pub tensor: TensorSpec,
+    /// Physical size of a cell along each axis (axis 0 first). Default: the
+    /// spacing stored with the tensor's dataset, else 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub spacing: Option<Vec<f64>>,
+    /// Id of a dataset of the grid's shape whose non-zero cells are walls.
+    /// No stencil offset crosses a wall cell, however wide.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacles: Option<String>,
+    /// The sources; the Voronoi label of a cell is the index of its source here.
+    #[schema(min_items = 1)]
+    pub sources: Vec<SourceSpec>,
+    /// Order of the scheme, 1 or 2. Default: 2.
+    #[serde(default = "default_order")]
+    #[schema(minimum = 1, maximum = 2)]
+    pub order: u8,
+    /// Source factoring around point sources. Default: true.
+    #[serde(default = "default_true")]
+    pub factoring: bool,
+    /// Early stopping rules.
+    #[serde(default)]
+    pub stop: StopSpec,
+    /// Which arrays to return besides the distance.
+    #[serde(default)]
+    pub outputs: OutputSpec,
+    /// Start points (index coordinates) of minimal paths to the nearest
+    /// source, traced along `−M⁻¹∇U`. Default: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub paths: Vec<Vec<f64>>,
+    /// Step of the path descent, in cells. Default: 0.5.
+    #[serde(default = "default_step")]
+    pub path_step: f64,
+}
+
+fn default_order() -> u8 {
+    2
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_step() -> f64 {
+    0.5
+}
+
+/// Statistics of an anisotropic solve.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TensorSolveStats {
+    /// Cells in the grid.
+    pub cells: u64,
+    /// Cells with a final value.
+    pub frozen: u64,
+    /// How the solve ended: `completed`, `targets_reached`, `max_distance` or `max_frozen`.
+    pub stop: String,
+    /// Largest anisotropy ratio `sqrt(λmax/λmin)` of the field.
+    pub max_anisotropy: f64,
+    /// Largest stencil offset used, in cells.
+    pub stencil_width: u64,
+    /// Wall time of the solve (stencils and marching), in seconds.
+    pub solve_seconds: f64,
+}
+
+/// A minimal path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TensorPath {
+    /// Points from the start to the source, index coordinates.
+    pub points: Vec<Vec<f64>>,
+    /// Riemannian length of the polyline.
+    pub length: f64,
+    /// Distance map value at the start.
+    pub distance: f64,
+    /// True when the descent ended at a source.
+    pub reached_source: bool,
+}
+
+impl GridTensorDistanceRequest {
+    fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
+        self.tensor.validate("tensor", limits)?;
+        let probe = super::grid_distance::GridDistanceRequest {
+            cost: super::grid_distance::CostSpec {
+                dataset: None,
+                constant: Some(1.0),
+                shape: Some(vec![1, 1]),
+                interpretation: Default::default(),
+                design: None,
+            },
+            spacing: self.spacing.clone(),
+            obstacles: None,
+            sources: self.sources.clone(),
+            method: Default::default(),
+            order: self.order,
+            factoring: self.factoring,
+            connectivity: Default::default(),
+            stop: self.stop.clone(),
+            outputs: self.outputs,
+        };
+        probe.validate(limits)?;
+        if !(self.path_step.is_finite() && self.path_step > 0.0) {
+            return Err(OpError::invalid(
+                "path_step",
+                format!("{} must be finite and > 0", self.path_step),
+            ));
+        }
+        for (i, p) in self.paths.iter().enumerate() {
+            if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+                return Err(OpError::invalid(
+                    format!("paths[{i}][{k}]"),
+                    "coordinates must be finite",
+                ));
+            }
+        }
+        if self.paths.len() > 10_000 {
+            return Err(OpError::TooLarge {
+                field: "paths".into(),
+                reason: format!("{} paths, more than the limit of 10000", self.paths.len()),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Operation for GridTensorDistanceRequest {
+    const NAME: &'static str = "grid.tensor_distance";
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        self.check(limits)
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        let mut ids = self.tensor.dataset_ids("tensor");
+        if let Some(id) = &self.obstacles {
+            ids.push(("obstacles".into(), id.clone()));
+        }
+        ids
+    }
+
+    /// Arrays: `distance` (f64), `labels` (i32, unless `outputs.labels` is
+    /// false), `frozen_order` (i64, when asked for). Document:
+    /// `{"stats": TensorSolveStats, "paths": [TensorPath]}`.
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        self.check(limits)?;
+        let shape = self.tensor.shape(inputs, "tensor", limits)?;
+        let spacing = self
+            .spacing
+            .clone()
+            .or_else(|| self.tensor.dataset_spacing(inputs))
+            .unwrap_or_else(|| vec![1.0; shape.len()]);
+        let grid = Grid::new(&shape, &spacing).map_err(|e| match e {
+            crate::numerics::GridError::Spacing { axis, .. } => {
+                OpError::invalid(format!("spacing[{axis}]"), e.to_string())
+            }
+            _ => OpError::invalid("spacing", e.to_string()),
+        })?;
+        let mut metric = self.tensor.build(&grid, inputs, "tensor")?;
+        if let Some(id) = &self.obstacles {
+            let m = inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
+                field: "obstacles".into(),
+                id: id.clone(),
+            })?;
+            if m.array.shape() != shape.as_slice() {
+                return Err(OpError::invalid(
+                    "obstacles",
+                    format!(
+                        "the mask has shape {:?} but the grid has shape {:?}",
+                        m.array.shape(),
+                        shape
+                    ),
+                ));
+            }
+            metric = metric
+                .with_walls(&grid, m.array.to_mask())
+                .map_err(|e| tensor_error(e, "tensor"))?;
+        }
+        let sources = self
+            .sources
+            .iter()
+            .map(|s| match (&s.point, &s.cells) {
+                (Some(p), _) => Source::Point(p.clone()),
+                (None, Some(c)) => Source::Cells {
+                    cells: c.clone(),
+                    values: s.values.clone(),
+                },
+                (None, None) => Source::Point(Vec::new()),
+            })
+            .collect();
+        let mut options = TensorOptions::DEFAULT
+            .with_order(if self.order == 1 {
+                Order::First
+            } else {
+                Order::Second
+            })
+            .with_factoring(self.factoring)
+            .with_stop(StopRules {
+                targets: self.stop.targets.clone(),
+                max_distance: self.stop.max_distance,
+                max_frozen: self.stop.max_frozen.map(|n| n as usize),
+            });
+        options.record_order = self.outputs.frozen_order;
+        let problem = TensorProblem {
+            grid,
+            metric,
+            sources,
+        };
+        let started = Instant::now();
+        let out = solve(&problem, &options, control).map_err(solve_error)?;
+        let solve_seconds = started.elapsed().as_secs_f64();
+        let flat: Vec<f64> = out.output.distance.iter().copied().collect();
+        let mut paths = Vec::with_capacity(self.paths.len());
+        let descent = DescentOptions {
+            step: self.path_step,
+            max_steps: None,
+        };
+        for (i, p) in self.paths.iter().enumerate() {
+            let path = minimal_path(&problem.grid, &problem.metric, &flat, p, &descent)
+                .map_err(|e| OpError::invalid(format!("paths[{i}]"), e.to_string()))?;
+            let p3 = problem
+                .grid
+                .point3(p)
+                .map_err(|e| OpError::invalid(format!("paths[{i}]"), e.to_string()))?;
+            let start = flat[problem
+                .grid
+                .linear(crate::numerics::eikonal::nearest_cell(&problem.grid, p3))];
+            paths.push(TensorPath {
+                points: path.points,
+                length: path.length,
+                distance: start,
+                reached_source: path.reached_source,
+            });
+        }
+        let stats = TensorSolveStats {
+            cells: problem.grid.len() as u64,
+            frozen: out.output.frozen as u64,
+            stop: stop_name(out.output.stop).into(),
+            max_anisotropy: out.stencil.max_anisotropy,
+            stencil_width: out.stencil.max_offset as u64,
+            solve_seconds,
+        };
+        let spacing = Some(spacing);
+        let mut arrays = vec![OutputArray {
+            name: "distance".into(),
+            array: ArrayData::F64(out.output.distance),
+            spacing: spacing.clone(),
+        }];
+        if self.outputs.labels {
+            arrays.push(OutputArray {
+                name: "labels".into(),
+                array: ArrayData::I32(out.output.labels),
+                spacing: spacing.clone(),
+            });
+        }
+        if let Some(order) = out.output.frozen_order {
+            arrays.push(OutputArray {
+                name: "frozen_order".into(),
+                array: ArrayData::I64(order),
+                spacing,
+            });
+        }
+        let document = serde_json::json!({ "stats": stats, "paths": paths });
+        Ok(OpOutput { arrays, document })
+    }
+}
+
+fn solve_error(e: TensorSolveError) -> OpError {
+    match e {
+        TensorSolveError::Cancelled => OpError::Cancelled,
+        TensorSolveError::Source { index, reason } => {
+            OpError::invalid(format!("sources[{index}]"), reason)
+        }
+        TensorSolveError::Target { index, reason } => {
+            OpError::invalid(format!("stop.targets[{index}]"), reason)
+        }
+        TensorSolveError::NoSources => OpError::invalid("sources", e.to_string()),
+        TensorSolveError::Option { field, reason } => OpError::invalid(field, reason),
+        TensorSolveError::Tensor(t) => tensor_error(t, "tensor"),
+        TensorSolveError::Grid(_) | TensorSolveError::Dimension { .. } => {
+            OpError::invalid("tensor", e.to_string())
+        }
+    }
+}
