@@ -10,6 +10,7 @@ use crate::config::ServeArgs;
 
 pub mod bench;
 pub mod distance;
+pub mod mesh_distance;
 mod usage;
 
 /// geodex: geodesic distances, minimal paths and segmentations.
@@ -38,6 +39,8 @@ pub enum Command {
     Distance(distance::DistanceArgs),
     /// Time the solvers on fixed problems (see `geodex bench --help`).
     Bench(bench::BenchArgs),
+    /// Geodesic distance on a triangle mesh file (batch use), written as NPY.
+    MeshDistance(mesh_distance::MeshDistanceArgs),
 }
 
 /// Entry point of the binary.
@@ -47,6 +50,7 @@ pub fn main() -> ExitCode {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
+        Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

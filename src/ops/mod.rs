@@ -5,8 +5,15 @@
 //! Nothing here does IO: input datasets are handed in through [`Inputs`].
 //!
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
+//! * [`mesh_distance`], [`mesh_voronoi`], [`mesh_paths`], [`mesh_sample`]:
+//!   geodesics on triangle meshes (shared pieces in [`mesh_common`]).
 
 pub mod grid_distance;
+pub mod mesh_common;
+pub mod mesh_distance;
+pub mod mesh_paths;
+pub mod mesh_sample;
+pub mod mesh_voronoi;
 
 use std::sync::Arc;
 
@@ -14,6 +21,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use crate::io::ArrayData;
+use crate::numerics::mesh::{HeatSolver, MeshSolveError};
 use crate::numerics::Control;
 
 /// One operation of the service: its request schema and how to run it.
@@ -79,6 +87,23 @@ pub struct InputArray {
 pub trait Inputs {
     /// The dataset with this id, if it exists.
     fn get(&self, id: &str) -> Option<InputArray>;
+
+    /// The mesh dataset with this id, if it exists and is a mesh. Default: none.
+    fn mesh(&self, _id: &str) -> Option<Arc<mesh_common::MeshInput>> {
+        None
+    }
+
+    /// The heat-method solver of mesh `id` with factor `m`: from the
+    /// caller's cache when it keeps one, else built by `build` (the default
+    /// builds every time).
+    fn heat_solver(
+        &self,
+        _id: &str,
+        _m: f64,
+        build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
+    ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
+        build().map(|s| (Arc::new(s), false))
+    }
 }
 
 impl Inputs for std::collections::HashMap<String, InputArray> {

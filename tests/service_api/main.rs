@@ -5,4 +5,5 @@ mod common;
 mod errors;
 mod flow;
 mod load;
+mod mesh;
 mod openapi;
