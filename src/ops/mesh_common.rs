@@ -198,6 +198,7 @@ pub struct HeatInfo {
 }
 
 /// Runs the chosen method, using (and filling) the caller's heat cache.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_distance(
     inputs: &dyn Inputs,
     mesh_id: &str,
