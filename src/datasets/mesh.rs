@@ -22,14 +22,16 @@ const MESH_CACHE_ENTRIES: usize = 8;
 const HEAT_CACHE_ENTRIES: usize = 4;
 
 type HeatSlot = Arc<Mutex<Option<Arc<HeatSolver>>>>;
+/// Entries with their last-use tick, and the clock.
+type Lru<K, V> = Mutex<(HashMap<K, (V, u64)>, u64)>;
 
 /// Caches of decoded meshes and heat factorisations (least recently used out).
 #[derive(Debug, Default)]
 pub struct MeshCache {
-    meshes: Mutex<(HashMap<String, (Arc<MeshInput>, u64)>, u64)>,
+    meshes: Lru<String, Arc<MeshInput>>,
     /// One slot per (id, m bits): concurrent requests for the same
     /// factorisation wait for one build instead of racing.
-    heat: Mutex<(HashMap<(String, u64), (HeatSlot, u64)>, u64)>,
+    heat: Lru<(String, u64), HeatSlot>,
 }
 
 impl MeshCache {

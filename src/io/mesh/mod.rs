@@ -324,7 +324,7 @@ impl RawMesh {
             let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
             let area2 = norm(cross(e1, e2));
             let scale = norm(e1).max(norm(e2)).max(norm(sub(p[2], p[1])));
-            if !(area2 > 1e-12 * scale * scale) {
+            if area2.is_nan() || area2 <= 1e-12 * scale * scale {
                 degenerate += 1;
                 continue;
             }

@@ -42,7 +42,7 @@ pub fn dijkstra_distance(
         }
         done[v as usize] = true;
         count += 1;
-        if count % 4096 == 0 {
+        if count.is_multiple_of(4096) {
             if control.is_cancelled() {
                 return Err(MeshSolveError::Cancelled);
             }

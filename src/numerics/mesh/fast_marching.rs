@@ -284,7 +284,7 @@ pub fn march(
         out.distance[v as usize] = d;
         out.labels[v as usize] = lab[v as usize];
         count += 1;
-        if count % 4096 == 0 {
+        if count.is_multiple_of(4096) {
             if control.is_cancelled() {
                 return Err(MeshSolveError::Cancelled);
             }

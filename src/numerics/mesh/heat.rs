@@ -129,7 +129,7 @@ impl HeatSolver {
             let a2 = norm(nrm);
             let scale =
                 dot(sub(p[1], p[0]), sub(p[1], p[0])).max(dot(sub(p[2], p[0]), sub(p[2], p[0])));
-            if !(a2 > 1e-12 * scale) || !a2.is_finite() {
+            if !a2.is_finite() || a2 <= 1e-12 * scale {
                 cots.push([0.0; 3]);
                 normals.push(([0.0; 3], 0.0));
                 continue;
@@ -284,7 +284,7 @@ impl HeatSolver {
                 }
             }
             let gn = norm(g);
-            if !(gn > 0.0) || !gn.is_finite() {
+            if !gn.is_finite() || gn <= 0.0 {
                 continue;
             }
             let x = [-g[0] / gn, -g[1] / gn, -g[2] / gn];
@@ -346,7 +346,7 @@ impl HeatSolver {
             distance: phi,
         };
         for v in 0..n {
-            if !(out.distance[v] <= max_distance) {
+            if out.distance[v].is_nan() || out.distance[v] > max_distance {
                 out.distance[v] = f64::INFINITY;
                 out.labels[v] = -1;
             }

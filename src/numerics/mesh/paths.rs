@@ -237,7 +237,7 @@ fn descent(mesh: &TriMesh, distance: &[f64], f: u32) -> Option<[f64; 3]> {
     let p = face.map(|v| mesh.position(v));
     let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
     let a2 = norm(n);
-    if !(a2 > 0.0) {
+    if a2.is_nan() || a2 <= 0.0 {
         return None;
     }
     let n = [n[0] / a2, n[1] / a2, n[2] / a2];
