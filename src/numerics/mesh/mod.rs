@@ -17,6 +17,7 @@ pub mod sources;
 pub use fast_marching::{fast_marching_distance, FastMarchingOptions};
 pub use heat::{HeatOptions, HeatSolver};
 pub use solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
+pub mod exact;
 
 /// Sentinel for "no such half-edge / face".
 pub const NONE: u32 = u32::MAX;

@@ -97,16 +97,13 @@ pub fn mesh_distance(
     }
 }
 
-/// Placeholder until `exact.rs` (window propagation) is merged.
+/// The exact polyhedral distance (window propagation, `exact.rs`).
 fn exact(
-    _mesh: &TriMesh,
-    _topo: &Topology,
-    _sources: &[SurfacePoint],
-    _max_distance: f64,
-    _control: &Control<'_>,
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    max_distance: f64,
+    control: &Control<'_>,
 ) -> Result<MeshDistance, MeshSolveError> {
-    Err(MeshSolveError::InvalidOption {
-        option: "method",
-        reason: "the exact method is not available in this build".into(),
-    })
+    super::exact::exact_distance(mesh, topo, sources, max_distance, control)
 }
