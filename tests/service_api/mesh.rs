@@ -61,6 +61,7 @@ async fn mesh_upload_distance_download() {
         ("fast_marching", 0.08),
         ("fast-marching", 0.08),
         ("heat", 0.08),
+        ("exact", 0.05),
         ("dijkstra", 0.2),
     ] {
         let res = post(
