@@ -63,8 +63,8 @@ pub fn dijkstra_distance(
         }
     }
     // Whatever is left in the band lies beyond the maximum distance.
-    for v in 0..n {
-        if !done[v] {
+    for (v, &d) in done.iter().enumerate() {
+        if !d {
             out.distance[v] = f64::INFINITY;
             out.labels[v] = -1;
         }

@@ -159,7 +159,7 @@ impl HeatSolver {
             }
             entries.push((v, v, 0.0));
         }
-        entries.sort_unstable_by(|a, b| (a.1, a.0).cmp(&(b.1, b.0)));
+        entries.sort_unstable_by_key(|a| (a.1, a.0));
         let mut lap: Vec<(usize, usize, f64)> = Vec::with_capacity(entries.len() / 2);
         for (i, j, w) in entries {
             match lap.last_mut() {
@@ -300,9 +300,9 @@ impl HeatSolver {
         // Zero mean per component (a closed surface has none; boundaries leak).
         let mut sum = vec![0.0; self.components];
         let mut area = vec![0.0; self.components];
-        for v in 0..n {
+        for (v, &dv) in div.iter().enumerate() {
             let c = self.component[v] as usize;
-            sum[c] += div[v];
+            sum[c] += dv;
             area[c] += self.mass[v];
         }
         let mut phi = Mat::<f64>::zeros(n, 1);
@@ -333,10 +333,10 @@ impl HeatSolver {
             };
             shift[c as usize] = shift[c as usize].min(val);
         }
-        for v in 0..n {
+        for (v, p) in phi.iter_mut().enumerate() {
             let c = self.component[v] as usize;
-            phi[v] = if has_source[c] && phi[v].is_finite() {
-                (phi[v] - shift[c]).max(0.0)
+            *p = if has_source[c] && p.is_finite() {
+                (*p - shift[c]).max(0.0)
             } else {
                 f64::INFINITY
             };
