@@ -2,6 +2,7 @@
 //! flat square (Euclidean), sources inside faces, Voronoi cells, paths and
 //! farthest-point sampling.
 
+#![allow(clippy::needless_range_loop)] // tests compare several per-vertex arrays by index
 use geodex::numerics::mesh::paths::{trace_path, PathLocation};
 use geodex::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
 use geodex::numerics::mesh::shapes::{flat_square, great_circle, icosphere};
