@@ -22,8 +22,11 @@ use chrono::{DateTime, Utc};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::io::mesh::{MeshFormat, MeshReport};
 use crate::io::{self, ArrayData, DType, Format, IoError, Limits};
 use crate::ops::InputArray;
+
+pub mod mesh;
 
 /// Whether a dataset is 2D or 3D.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
@@ -33,6 +36,8 @@ pub enum DatasetKind {
     Image,
     /// A 3D array.
     Volume,
+    /// A triangle mesh (stored as binary PLY, with per-vertex results).
+    Mesh,
 }
 
 /// Where a dataset came from.
@@ -51,6 +56,25 @@ pub enum SourceFormat {
     Nifti,
     /// Computed by an operation.
     Result,
+    /// Uploaded as OBJ.
+    Obj,
+    /// Uploaded as PLY.
+    Ply,
+    /// Uploaded as OFF.
+    Off,
+    /// Uploaded as STL.
+    Stl,
+}
+
+impl From<MeshFormat> for SourceFormat {
+    fn from(f: MeshFormat) -> Self {
+        match f {
+            MeshFormat::Obj => SourceFormat::Obj,
+            MeshFormat::Ply => SourceFormat::Ply,
+            MeshFormat::Off => SourceFormat::Off,
+            MeshFormat::Stl => SourceFormat::Stl,
+        }
+    }
 }
 
 impl From<Format> for SourceFormat {
@@ -81,9 +105,9 @@ impl From<Format> for SourceFormat {
 pub struct DatasetMeta {
     /// The id (`ds_` followed by 32 hex digits).
     pub id: String,
-    /// `image` (2D) or `volume` (3D).
+    /// `image` (2D), `volume` (3D) or `mesh`.
     pub kind: DatasetKind,
-    /// Shape, axis 0 first.
+    /// Shape, axis 0 first (a mesh: `[vertices, 3]`).
     #[schema(min_items = 2, max_items = 3)]
     pub shape: Vec<usize>,
     /// Element type.
@@ -99,6 +123,10 @@ pub struct DatasetMeta {
     pub expires_at: DateTime<Utc>,
     /// The format it was uploaded in, or `result`.
     pub source_format: SourceFormat,
+    /// Meshes only: vertex, face, boundary-loop and component counts and
+    /// what reading repaired.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshReport>,
 }
 
 /// Why a store operation failed.
@@ -168,6 +196,7 @@ pub struct DatasetStore {
     config: StoreConfig,
     index: Mutex<Index>,
     cache: Mutex<Cache>,
+    meshes: mesh::MeshCache,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -223,6 +252,7 @@ impl DatasetStore {
             config,
             index: Mutex::new(index),
             cache: Mutex::new(Cache::default()),
+            meshes: mesh::MeshCache::default(),
         })
     }
 
@@ -340,6 +370,7 @@ impl DatasetStore {
                 .checked_add_signed(ttl)
                 .unwrap_or(DateTime::<Utc>::MAX_UTC),
             source_format,
+            mesh: None,
         };
         let tmp = self.root.join(format!(".tmp-{id}"));
         let write = || -> Result<(), StoreError> {
@@ -370,6 +401,12 @@ impl DatasetStore {
     /// possible.
     pub fn load_blocking(&self, id: &str) -> Result<InputArray, StoreError> {
         let meta = self.meta(id)?;
+        if meta.kind == DatasetKind::Mesh {
+            return Err(StoreError::Codec(IoError::Unsupported {
+                format: Format::Npy,
+                reason: format!("dataset '{id}' is a mesh, not an array"),
+            }));
+        }
         {
             let mut cache = lock(&self.cache);
             cache.tick += 1;
@@ -431,6 +468,7 @@ impl DatasetStore {
                 cache.bytes -= old.array.nbytes();
             }
         }
+        self.meshes.forget(id);
         std::fs::remove_dir_all(self.root.join(id))?;
         if meta.expires_at <= Utc::now() {
             return Err(StoreError::NotFound(id.into()));

@@ -13,6 +13,8 @@ mod bench_tensor;
 pub mod distance;
 pub mod path;
 pub mod segment;
+
+pub mod mesh_distance;
 mod usage;
 
 /// geodex: geodesic distances, minimal paths and segmentations.
@@ -53,6 +55,9 @@ pub enum Command {
     Plan(segment::PlanArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
+
+    /// Geodesic distance on a triangle mesh file (batch use), written as NPY.
+    MeshDistance(mesh_distance::MeshDistanceArgs),
 }
 
 /// Entry point of the binary.
@@ -68,6 +73,8 @@ pub fn main() -> ExitCode {
         Some(Command::Offset(args)) => segment::run_offset(&args).map_err(Into::into),
         Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
+
+        Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -9,6 +9,7 @@
 //!   write 32-bit float).
 //! * [`nifti`]: NIfTI-1 `.nii` / `.nii.gz` (read, write).
 //! * [`render`]: colour-mapped 8-bit PNG previews for people.
+//! * [`mesh`]: triangle meshes (OBJ, PLY, OFF, STL in; PLY, OBJ, JSON out).
 //!
 //! # Axis conventions
 //!
@@ -32,6 +33,7 @@
 //! ```
 
 pub mod array;
+pub mod mesh;
 pub mod nifti;
 pub mod npy;
 pub mod raster;

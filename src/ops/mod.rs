@@ -12,6 +12,8 @@
 //! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
 //! * [`grid_tensor_metric`]: `grid.tensor_metric`, a tensor field (or a designed metric) as a dataset.
 //! * [`tensor_spec`]: the `tensor` section shared by both.
+//! * [`mesh_distance`], [`mesh_voronoi`], [`mesh_paths`], [`mesh_sample`]:
+//!   geodesics on triangle meshes (shared pieces in [`mesh_common`]).
 
 pub mod grid_distance;
 pub mod grid_edt;
@@ -24,6 +26,11 @@ pub mod grid_segment;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
+pub mod mesh_common;
+pub mod mesh_distance;
+pub mod mesh_paths;
+pub mod mesh_sample;
+pub mod mesh_voronoi;
 pub mod tensor_spec;
 
 use std::sync::Arc;
@@ -32,6 +39,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use crate::io::ArrayData;
+use crate::numerics::mesh::{HeatSolver, MeshSolveError};
 use crate::numerics::Control;
 
 /// One operation of the service: its request schema and how to run it.
@@ -97,6 +105,23 @@ pub struct InputArray {
 pub trait Inputs {
     /// The dataset with this id, if it exists.
     fn get(&self, id: &str) -> Option<InputArray>;
+
+    /// The mesh dataset with this id, if it exists and is a mesh. Default: none.
+    fn mesh(&self, _id: &str) -> Option<Arc<mesh_common::MeshInput>> {
+        None
+    }
+
+    /// The heat-method solver of mesh `id` with factor `m`: from the
+    /// caller's cache when it keeps one, else built by `build` (the default
+    /// builds every time).
+    fn heat_solver(
+        &self,
+        _id: &str,
+        _m: f64,
+        build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
+    ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
+        build().map(|s| (Arc::new(s), false))
+    }
 }
 
 impl Inputs for std::collections::HashMap<String, InputArray> {

@@ -5,6 +5,7 @@ mod common;
 mod errors;
 mod flow;
 mod load;
+mod mesh;
 mod openapi;
 mod paths;
 mod segment;

@@ -14,6 +14,7 @@ use crate::datasets::{valid_id, DatasetMeta, StoreError};
 use crate::http::error::{io_error, ApiError};
 use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
 use crate::http::AppState;
+use crate::io::mesh::{read_mesh, write, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData, Decoded, Format, Limits};
 
 /// Largest array offered as JSON.
@@ -33,16 +34,29 @@ pub enum UploadFormat {
     Tiff,
     /// NIfTI-1 (`.nii` or `.nii.gz`).
     Nifti,
+    /// Wavefront OBJ mesh.
+    Obj,
+    /// PLY mesh (ASCII or binary).
+    Ply,
+    /// OFF mesh.
+    Off,
+    /// STL mesh (ASCII or binary; vertices welded).
+    Stl,
 }
 
-impl From<UploadFormat> for Format {
-    fn from(f: UploadFormat) -> Self {
-        match f {
-            UploadFormat::Npy => Format::Npy,
-            UploadFormat::Png => Format::Png,
-            UploadFormat::Jpeg => Format::Jpeg,
-            UploadFormat::Tiff => Format::Tiff,
-            UploadFormat::Nifti => Format::Nifti,
+impl UploadFormat {
+    /// The array format, or the mesh format.
+    fn split(self) -> Result<Format, MeshFormat> {
+        match self {
+            UploadFormat::Npy => Ok(Format::Npy),
+            UploadFormat::Png => Ok(Format::Png),
+            UploadFormat::Jpeg => Ok(Format::Jpeg),
+            UploadFormat::Tiff => Ok(Format::Tiff),
+            UploadFormat::Nifti => Ok(Format::Nifti),
+            UploadFormat::Obj => Err(MeshFormat::Obj),
+            UploadFormat::Ply => Err(MeshFormat::Ply),
+            UploadFormat::Off => Err(MeshFormat::Off),
+            UploadFormat::Stl => Err(MeshFormat::Stl),
         }
     }
 }
@@ -69,8 +83,12 @@ pub enum OutputFormat {
     /// Colour-mapped PNG for people, with iso-distance lines on distance maps (`image/png`).
     Png,
     /// JSON `{shape, dtype, data}` with `data` flat in C order (`null` for non-finite values);
-    /// only for arrays of at most 65536 cells.
+    /// only for arrays of at most 65536 cells. Meshes: `{vertices, faces, properties}`.
     Json,
+    /// Meshes: binary PLY with the per-vertex properties (`model/ply`); the default for meshes.
+    Ply,
+    /// Meshes: Wavefront OBJ, geometry only (`model/obj`).
+    Obj,
 }
 
 /// Query of a download.
@@ -183,13 +201,17 @@ pub async fn upload(
     headers: HeaderMap,
     ApiBytes(body): ApiBytes,
 ) -> Result<Response, ApiError> {
-    let hint = match query.format {
-        Some(f) => Some(f.into()),
-        None => format_from_content_type(&headers)?,
-    };
     if body.is_empty() {
         return Err(ApiError::bad_request("body", "body: the body is empty"));
     }
+    if let Some(mesh_format) = mesh_upload_format(query.format, &headers, &body) {
+        return upload_mesh(state, body, mesh_format).await;
+    }
+    let hint = match query.format.map(UploadFormat::split) {
+        Some(Ok(f)) => Some(f),
+        Some(Err(_)) => None,
+        None => format_from_content_type(&headers)?,
+    };
     let decoded = decode_upload(body, hint, state.io_limits, "body").await?;
     let meta = state
         .store
@@ -271,6 +293,8 @@ pub fn negotiate(query: Option<OutputFormat>, headers: &HeaderMap) -> OutputForm
             "image/tiff" => return OutputFormat::Tiff,
             "image/png" => return OutputFormat::Png,
             "application/json" => return OutputFormat::Json,
+            "model/ply" => return OutputFormat::Ply,
+            "model/obj" => return OutputFormat::Obj,
             _ => {}
         }
     }
@@ -300,21 +324,25 @@ pub fn encode(
     array: &ArrayData,
     format: OutputFormat,
 ) -> Result<(Vec<u8>, &'static str), ApiError> {
-    let encoded = match format {
-        OutputFormat::Npy => io::encode_npy(array).map(|b| (b, "application/x-npy")),
-        OutputFormat::Json => return to_json(array).map(|b| (b, "application/json")),
-        OutputFormat::Tiff => io::encode_tiff_f32(array).map(|b| (b, "image/tiff")),
-        OutputFormat::Png16 => io::encode_png16(array, None).map(|b| (b, "image/png")),
-        OutputFormat::Png => {
-            // Float fields (distance maps) get iso-value lines; labels are categorical.
-            let iso = matches!(array, ArrayData::F64(_) | ArrayData::F32(_));
-            let options = io::RenderOptions {
-                iso_lines: iso.then_some(io::IsoLines::Count(10)),
-                ..Default::default()
-            };
-            io::render_png(array, &options).map(|b| (b, "image/png"))
-        }
-    };
+    let encoded =
+        match format {
+            OutputFormat::Npy => io::encode_npy(array).map(|b| (b, "application/x-npy")),
+            OutputFormat::Json => return to_json(array).map(|b| (b, "application/json")),
+            OutputFormat::Tiff => io::encode_tiff_f32(array).map(|b| (b, "image/tiff")),
+            OutputFormat::Png16 => io::encode_png16(array, None).map(|b| (b, "image/png")),
+            OutputFormat::Png => {
+                // Float fields (distance maps) get iso-value lines; labels are categorical.
+                let iso = matches!(array, ArrayData::F64(_) | ArrayData::F32(_));
+                let options = io::RenderOptions {
+                    iso_lines: iso.then_some(io::IsoLines::Count(10)),
+                    ..Default::default()
+                };
+                io::render_png(array, &options).map(|b| (b, "image/png"))
+            }
+            OutputFormat::Ply | OutputFormat::Obj => return Err(ApiError::not_acceptable(
+                "ply and obj are offered for mesh datasets only; use npy, tiff, png16, png or json",
+            )),
+        };
     encoded.map_err(|e| ApiError::not_acceptable(format!("cannot encode this array: {e}")))
 }
 
@@ -351,6 +379,9 @@ pub async fn get_data(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     check_id(&path.id)?;
+    if state.store.meta(&path.id)?.kind == crate::datasets::DatasetKind::Mesh {
+        return mesh_data(&state, &path.id, query.format, &headers).await;
+    }
     let format = negotiate(query.format, &headers);
     let store = state.store.clone();
     let id = path.id.clone();
@@ -364,4 +395,123 @@ pub async fn get_data(
             .map_err(ApiError::internal)??
     };
     Ok(([(header::CONTENT_TYPE, media)], bytes).into_response())
+}
+
+/// The mesh format of an upload: `?format=` naming a mesh format, a mesh
+/// `Content-Type` (`model/obj`, `model/ply`, `model/stl`, `model/off`), or,
+/// without either, bytes that no array codec recognises but a mesh reader does.
+fn mesh_upload_format(
+    query: Option<UploadFormat>,
+    headers: &HeaderMap,
+    body: &[u8],
+) -> Option<MeshFormat> {
+    if let Some(f) = query {
+        return f.split().err();
+    }
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    if let Some(f) = MeshFormat::from_media_type(ct) {
+        return Some(f);
+    }
+    let essence = ct
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    let detect =
+        essence.is_empty() || essence == "application/octet-stream" || essence == "text/plain";
+    if detect && Format::sniff(body).is_none() {
+        return MeshFormat::sniff(body);
+    }
+    None
+}
+
+/// Reads, repairs and stores an uploaded mesh.
+async fn upload_mesh(
+    state: AppState,
+    body: bytes::Bytes,
+    format: MeshFormat,
+) -> Result<Response, ApiError> {
+    let limits = MeshLimits::default();
+    let loaded = tokio::task::spawn_blocking(move || read_mesh(&body, Some(format), &limits))
+        .await
+        .map_err(ApiError::internal)?
+        .map_err(|e| match e {
+            io::mesh::MeshIoError::TooLarge { .. } => {
+                ApiError::too_large("body", format!("body: {e}"))
+            }
+            _ => ApiError::invalid_field("body", format!("body: {e}")),
+        })?;
+    let store = state.store.clone();
+    let meta = crate::datasets::blocking(move || {
+        store.create_mesh_blocking(&loaded.mesh, loaded.report.clone(), &[], format.into())
+    })
+    .await?;
+    let location = format!("/v1/datasets/{}", meta.id);
+    let mut res = (StatusCode::CREATED, Json(meta)).into_response();
+    if let Ok(v) = HeaderValue::from_str(&location) {
+        res.headers_mut().insert(header::LOCATION, v);
+    }
+    Ok(res)
+}
+
+/// Largest mesh offered as JSON or OBJ, in vertices.
+pub const MESH_TEXT_MAX_VERTICES: usize = 2_000_000;
+
+/// Downloads a mesh dataset: PLY (stored bytes, default), OBJ or JSON.
+async fn mesh_data(
+    state: &AppState,
+    id: &str,
+    query: Option<OutputFormat>,
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let format = match query {
+        Some(f) => f,
+        None => match negotiate(None, headers) {
+            OutputFormat::Json => OutputFormat::Json,
+            OutputFormat::Obj => OutputFormat::Obj,
+            _ => OutputFormat::Ply,
+        },
+    };
+    let store = state.store.clone();
+    let id = id.to_string();
+    let bytes = crate::datasets::blocking(move || store.read_mesh_file_blocking(&id)).await?;
+    let (body, media) = match format {
+        OutputFormat::Ply => (bytes, "model/ply"),
+        OutputFormat::Obj | OutputFormat::Json => {
+            tokio::task::spawn_blocking(move || -> Result<(Vec<u8>, &'static str), ApiError> {
+                let loaded = read_mesh(&bytes, Some(MeshFormat::Ply), &MeshLimits::default())
+                    .map_err(ApiError::internal)?;
+                if loaded.mesh.num_vertices() > MESH_TEXT_MAX_VERTICES {
+                    return Err(ApiError::not_acceptable(format!(
+                        "obj and json are offered for meshes of at most {MESH_TEXT_MAX_VERTICES} vertices; use ply"
+                    )));
+                }
+                if format == OutputFormat::Obj {
+                    return Ok((write::write_obj(&loaded.mesh), "model/obj"));
+                }
+                let extra = io::mesh::ply::vertex_values(&bytes).unwrap_or_default();
+                let mut props = Vec::new();
+                if let Some(d) = &extra.distance {
+                    props.push(write::VertexProperty::F64("distance", d));
+                }
+                if let Some(l) = &extra.label {
+                    props.push(write::VertexProperty::I32("label", l));
+                }
+                let json = write::write_json(&loaded.mesh, &props);
+                Ok((serde_json::to_vec(&json).map_err(ApiError::internal)?, "application/json"))
+            })
+            .await
+            .map_err(ApiError::internal)??
+        }
+        _ => {
+            return Err(ApiError::not_acceptable(
+                "a mesh dataset is offered as ply (default), obj or json",
+            ))
+        }
+    };
+    Ok(([(header::CONTENT_TYPE, media)], body).into_response())
 }

@@ -6,8 +6,8 @@
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
-
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
+//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample}`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
 
@@ -15,10 +15,9 @@ pub mod datasets;
 pub mod docs;
 pub mod grid;
 pub mod health;
+pub mod jobs;
+pub mod mesh;
 pub mod metric;
 pub mod paths;
 pub mod segment;
-
-pub mod jobs;
-
 pub mod tensor;

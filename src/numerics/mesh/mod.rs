@@ -5,6 +5,18 @@
 //! Half-edge convention: edge `k` of face `f` goes from `faces[f][k]` to
 //! `faces[f][(k + 1) % 3]` and has the id `3 f + k`.
 
+pub mod dijkstra;
+pub mod fast_marching;
+pub mod heat;
+pub mod paths;
+pub mod sampling;
+pub mod shapes;
+pub mod solve;
+pub mod sources;
+
+pub use fast_marching::{fast_marching_distance, FastMarchingOptions};
+pub use heat::{HeatOptions, HeatSolver};
+pub use solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
 pub mod exact;
 
 /// Sentinel for "no such half-edge / face".
@@ -91,6 +103,12 @@ impl TriMesh {
             }
         }
         Ok(Self { positions, faces })
+    }
+
+    /// A mesh from parts the caller guarantees valid (generators in
+    /// [`shapes`]): no check is made.
+    pub(crate) fn from_parts_unchecked(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Self {
+        Self { positions, faces }
     }
 
     /// Vertex positions.

@@ -1,0 +1,282 @@
+//! `/v1/mesh/*`: distance, Voronoi cells, paths and farthest-point sampling
+//! on mesh datasets. The handlers load the mesh (cached), run the operation
+//! on the solver pool with the store's heat-factorisation cache, and store
+//! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use axum::extract::State;
+use axum::Json;
+use serde::Serialize;
+use serde_json::Value;
+use utoipa::ToSchema;
+
+use crate::datasets::{DatasetStore, SourceFormat, StoreError};
+use crate::http::error::ApiError;
+use crate::http::extract::ApiJson;
+use crate::http::routes::grid::DatasetRef;
+use crate::http::AppState;
+use crate::io::mesh::write::VertexProperty;
+use crate::io::ArrayData;
+use crate::numerics::mesh::{HeatSolver, MeshSolveError};
+use crate::ops::mesh_common::MeshInput;
+use crate::ops::mesh_distance::MeshDistanceRequest;
+use crate::ops::mesh_paths::MeshPathsRequest;
+use crate::ops::mesh_sample::MeshSampleRequest;
+use crate::ops::mesh_voronoi::MeshVoronoiRequest;
+use crate::ops::{InputArray, Inputs, OpError, Operation};
+
+/// Inputs of a mesh operation: meshes, arrays and the store's heat cache.
+struct MeshInputs {
+    arrays: HashMap<String, InputArray>,
+    meshes: HashMap<String, Arc<MeshInput>>,
+    store: Arc<DatasetStore>,
+}
+
+impl Inputs for MeshInputs {
+    fn get(&self, id: &str) -> Option<InputArray> {
+        self.arrays.get(id).cloned()
+    }
+
+    fn mesh(&self, id: &str) -> Option<Arc<MeshInput>> {
+        self.meshes.get(id).cloned()
+    }
+
+    fn heat_solver(
+        &self,
+        id: &str,
+        m: f64,
+        build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
+    ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
+        self.store.heat_solver(id, m, build)
+    }
+}
+
+/// The answer of a mesh operation.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct MeshResponse {
+    /// The mesh with per-vertex `distance` (double) and `label` (int) as a
+    /// PLY dataset (`data_url?format=ply|obj|json`); absent for paths.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result: Option<DatasetRef>,
+    /// Method, statistics, heat-method details, and the operation's own
+    /// fields (`cells`, `paths`, `samples`).
+    #[serde(flatten)]
+    #[schema(value_type = Object)]
+    pub details: serde_json::Map<String, Value>,
+}
+
+async fn run_mesh_op<O: Operation>(
+    state: &AppState,
+    request: O,
+) -> Result<Json<MeshResponse>, ApiError> {
+    request.validate(&state.op_limits)?;
+    let mut inputs = MeshInputs {
+        arrays: HashMap::new(),
+        meshes: HashMap::new(),
+        store: state.store.clone(),
+    };
+    let mut mesh_id = None;
+    for (field, id) in request.dataset_ids() {
+        let not_found = || -> ApiError {
+            OpError::UnknownDataset {
+                field: field.clone(),
+                id: id.clone(),
+            }
+            .into()
+        };
+        if field == "mesh" {
+            match state.store.load_mesh(&id).await {
+                Ok(m) => {
+                    inputs.meshes.insert(id.clone(), m);
+                    mesh_id = Some(id.clone());
+                }
+                Err(StoreError::NotFound(_)) => return Err(not_found()),
+                Err(StoreError::Codec(_)) => {
+                    return Err(
+                        OpError::invalid(field, format!("dataset '{id}' is not a mesh")).into(),
+                    )
+                }
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            match state.store.load(&id).await {
+                Ok(a) => {
+                    inputs.arrays.insert(id.clone(), a);
+                }
+                Err(StoreError::NotFound(_)) => return Err(not_found()),
+                Err(StoreError::Codec(_)) => {
+                    return Err(
+                        OpError::invalid(field, format!("dataset '{id}' is not an array")).into(),
+                    )
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+    let limits = state.op_limits;
+    let mesh = mesh_id.and_then(|id| inputs.meshes.get(&id).cloned());
+    let (result, _timing) = state
+        .pool
+        .run(O::NAME, state.solve_timeout, move |control| {
+            request.run(&inputs, &limits, control)
+        })
+        .await?;
+    let output = result?;
+    let mut details = match output.document {
+        Value::Object(map) => map,
+        _ => serde_json::Map::new(),
+    };
+    let get = |name: &str| {
+        output
+            .arrays
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| &a.array)
+    };
+    let result = match (mesh, get("distance"), get("labels")) {
+        (Some(mesh), Some(ArrayData::F64(d)), Some(ArrayData::I32(l))) => {
+            let (d, l) = (
+                d.iter().copied().collect::<Vec<f64>>(),
+                l.iter().copied().collect::<Vec<i32>>(),
+            );
+            let store = state.store.clone();
+            let meta = crate::datasets::blocking(move || {
+                store.create_mesh_blocking(
+                    &mesh.mesh,
+                    mesh.report.clone(),
+                    &[
+                        VertexProperty::F64("distance", &d),
+                        VertexProperty::I32("label", &l),
+                    ],
+                    SourceFormat::Result,
+                )
+            })
+            .await?;
+            Some(DatasetRef::from(&meta))
+        }
+        _ => None,
+    };
+    details.remove("mesh_report");
+    Ok(Json(MeshResponse { result, details }))
+}
+
+/// `POST /v1/mesh/distance`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/distance",
+    tag = "mesh",
+    summary = "Geodesic distance on a triangle mesh",
+    description = "Distance from sources at vertices or inside faces (`{\"vertex\": i}` or \
+`{\"face\": f, \"bary\": [b0, b1, b2]}`) over a mesh dataset, with `method` `fast_marching` (default; \
+`fast-marching` accepted), `heat` (factorisation cached per dataset and `heat.m`: later queries cost two solves), \
+`exact` or `dijkstra`. The result is a new mesh dataset (PLY) with per-vertex `distance` (+inf where unreached: \
+other components, beyond `max_distance`) and `label` (index of the nearest source, -1 where unreached).",
+    request_body(content((MeshDistanceRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = MeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn distance(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshDistanceRequest>,
+) -> Result<Json<MeshResponse>, ApiError> {
+    run_mesh_op(&state, request).await
+}
+
+/// `POST /v1/mesh/voronoi`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/voronoi",
+    tag = "mesh",
+    summary = "Geodesic Voronoi cells on a triangle mesh",
+    description = "The fields of `/v1/mesh/distance`; the answer adds `cells` (vertices and area per source) \
+and the stored mesh carries the cell of every vertex in `label`.",
+    request_body(content((MeshVoronoiRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = MeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn voronoi(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshVoronoiRequest>,
+) -> Result<Json<MeshResponse>, ApiError> {
+    run_mesh_op(&state, request).await
+}
+
+/// `POST /v1/mesh/paths`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/paths",
+    tag = "mesh",
+    summary = "Geodesic paths on a triangle mesh",
+    description = "Paths from each target to its nearest source by steepest descent of the distance field \
+across faces: 3D polylines whose points name their `vertex`, `edge` or `face`.",
+    request_body(content((MeshPathsRequest = "application/json"))),
+    responses(
+        (status = 200, description = "The paths.", body = MeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+    )
+)]
+pub async fn paths(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshPathsRequest>,
+) -> Result<Json<MeshResponse>, ApiError> {
+    run_mesh_op(&state, request).await
+}
+
+/// `POST /v1/mesh/sample`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/sample",
+    tag = "mesh",
+    summary = "Farthest-point sampling of a triangle mesh",
+    description = "Adds the vertex farthest from the samples so far until `count` samples are placed or every \
+vertex is within `radius`; returns the samples and stores the mesh with the distance to the nearest sample \
+and its Voronoi cell (`label`).",
+    request_body(content((MeshSampleRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = MeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn sample(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshSampleRequest>,
+) -> Result<Json<MeshResponse>, ApiError> {
+    run_mesh_op(&state, request).await
+}

@@ -1,0 +1,438 @@
+//! Triangle-mesh codecs: OBJ, PLY (ASCII, binary little and big endian,
+//! through `ply-rs-bw`), OFF and STL (ASCII and binary, duplicate vertices
+//! welded) in; PLY with per-vertex properties, OBJ and JSON out.
+//!
+//! Every reader checks declared counts against [`MeshLimits`] before it
+//! allocates, never panics on malformed input, triangulates polygons as
+//! fans, and repairs what can be repaired without changing the surface:
+//! faces that repeat a vertex or have zero area are dropped, exact duplicate
+//! faces are dropped, and both are counted in the [`MeshReport`]. What
+//! cannot be repaired is refused with a [`MeshIoError`] naming the culprit
+//! (an index out of range, a non-finite coordinate, no face left).
+//!
+//! * [`obj`], [`off`], [`stl`], [`ply`]: the readers.
+//! * [`write`]: PLY / OBJ / JSON writers.
+
+pub mod obj;
+pub mod off;
+pub mod ply;
+pub mod stl;
+pub mod write;
+
+use std::collections::HashSet;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::numerics::mesh::{cross, norm, sub, MeshError, Topology, TriMesh};
+
+/// A mesh file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum MeshFormat {
+    /// Wavefront OBJ (`v` and `f` records; polygons triangulated).
+    Obj,
+    /// Stanford PLY, ASCII or binary (either byte order).
+    Ply,
+    /// Object File Format.
+    Off,
+    /// STL, ASCII or binary (vertices welded).
+    Stl,
+}
+
+impl MeshFormat {
+    /// Every format.
+    pub const ALL: [MeshFormat; 4] = [
+        MeshFormat::Obj,
+        MeshFormat::Ply,
+        MeshFormat::Off,
+        MeshFormat::Stl,
+    ];
+
+    /// The format of a media type (`model/obj`, `model/ply`, `model/stl`,
+    /// `model/off`, and the common `application/…` aliases), if it names one.
+    pub fn from_media_type(media_type: &str) -> Option<Self> {
+        let essence = media_type
+            .split(';')
+            .next()
+            .unwrap_or_default()
+            .trim()
+            .to_ascii_lowercase();
+        Some(match essence.as_str() {
+            "model/obj" | "text/x-obj" | "application/x-tgif" => MeshFormat::Obj,
+            "model/ply" | "application/ply" | "application/x-ply" => MeshFormat::Ply,
+            "model/stl"
+            | "model/x.stl-binary"
+            | "model/x.stl-ascii"
+            | "application/sla"
+            | "application/vnd.ms-pki.stl" => MeshFormat::Stl,
+            "model/off" | "application/x-off" => MeshFormat::Off,
+            _ => return None,
+        })
+    }
+
+    /// The format of a name (`obj`, `.PLY`, `bunny.off`), if known.
+    pub fn from_name(name: &str) -> Option<Self> {
+        let lower = name.trim().to_ascii_lowercase();
+        Some(match lower.rsplit('.').next().unwrap_or_default() {
+            "obj" => MeshFormat::Obj,
+            "ply" => MeshFormat::Ply,
+            "off" => MeshFormat::Off,
+            "stl" => MeshFormat::Stl,
+            _ => return None,
+        })
+    }
+
+    /// The media type to send it with.
+    pub fn media_type(self) -> &'static str {
+        match self {
+            MeshFormat::Obj => "model/obj",
+            MeshFormat::Ply => "model/ply",
+            MeshFormat::Off => "model/off",
+            MeshFormat::Stl => "model/stl",
+        }
+    }
+
+    /// The format announced by the first bytes, if any (`ply`, `OFF`,
+    /// `solid` or a binary STL whose length matches its triangle count).
+    pub fn sniff(bytes: &[u8]) -> Option<Self> {
+        let head = &bytes[..bytes.len().min(256)];
+        let text = String::from_utf8_lossy(head);
+        let t = text.trim_start();
+        if t.starts_with("ply") {
+            Some(MeshFormat::Ply)
+        } else if t.starts_with("OFF") || t.starts_with("COFF") || t.starts_with("NOFF") {
+            Some(MeshFormat::Off)
+        } else if stl::is_binary(bytes) || t.starts_with("solid") {
+            Some(MeshFormat::Stl)
+        } else if t.lines().any(|l| {
+            let l = l.trim_start();
+            l.starts_with("v ") || l.starts_with("f ") || l.starts_with('#') || l.starts_with("o ")
+        }) {
+            Some(MeshFormat::Obj)
+        } else {
+            None
+        }
+    }
+}
+
+/// Size limits checked before allocating.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeshLimits {
+    /// Most vertices.
+    pub max_vertices: usize,
+    /// Most triangles (after triangulating polygons).
+    pub max_faces: usize,
+}
+
+impl Default for MeshLimits {
+    fn default() -> Self {
+        Self {
+            max_vertices: 20_000_000,
+            max_faces: 40_000_000,
+        }
+    }
+}
+
+impl MeshLimits {
+    pub(crate) fn check(
+        &self,
+        format: MeshFormat,
+        vertices: u64,
+        faces: u64,
+    ) -> Result<(), MeshIoError> {
+        if vertices > self.max_vertices as u64 {
+            return Err(MeshIoError::TooLarge {
+                format,
+                reason: format!(
+                    "{vertices} vertices, more than the limit of {}",
+                    self.max_vertices
+                ),
+            });
+        }
+        if faces > self.max_faces as u64 {
+            return Err(MeshIoError::TooLarge {
+                format,
+                reason: format!("{faces} faces, more than the limit of {}", self.max_faces),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Why a mesh file was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshIoError {
+    /// The bytes are in no known mesh format.
+    #[error("unrecognised mesh format (expected OBJ, PLY, OFF or STL)")]
+    UnknownFormat,
+    /// The file is malformed; `line` when known (1-based).
+    #[error("corrupt {format:?} file{}: {reason}", line.map(|l| format!(" at line {l}")).unwrap_or_default())]
+    Corrupt {
+        /// The format.
+        format: MeshFormat,
+        /// Line number, when the format is text.
+        line: Option<usize>,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Declared counts above the limits.
+    #[error("{format:?} mesh too large: {reason}")]
+    TooLarge {
+        /// The format.
+        format: MeshFormat,
+        /// The numbers.
+        reason: String,
+    },
+    /// The content is well-formed but not an acceptable mesh.
+    #[error("invalid mesh: {0}")]
+    Invalid(#[from] MeshError),
+    /// Writing failed.
+    #[error("cannot encode mesh: {0}")]
+    Encode(String),
+}
+
+impl MeshIoError {
+    pub(crate) fn corrupt(
+        format: MeshFormat,
+        line: Option<usize>,
+        reason: impl Into<String>,
+    ) -> Self {
+        MeshIoError::Corrupt {
+            format,
+            line,
+            reason: reason.into(),
+        }
+    }
+}
+
+/// What reading and repairing a mesh found: stored in the dataset metadata.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MeshReport {
+    /// Vertices kept (after welding).
+    pub vertices: usize,
+    /// Triangles kept.
+    pub faces: usize,
+    /// Triangles in the file (after triangulating polygons).
+    pub input_faces: usize,
+    /// Vertices merged because they had identical coordinates (STL).
+    pub welded_vertices: usize,
+    /// Triangles dropped because they repeat a vertex or have zero area.
+    pub degenerate_faces: usize,
+    /// Triangles dropped because they repeat another triangle's vertices.
+    pub duplicate_faces: usize,
+    /// Edges with one face.
+    pub boundary_edges: usize,
+    /// Closed loops of boundary edges (holes).
+    pub boundary_loops: usize,
+    /// Edges with more than two faces.
+    pub non_manifold_edges: usize,
+    /// Edges whose two faces are inconsistently oriented.
+    pub misoriented_edges: usize,
+    /// Connected components (through faces; unreferenced vertices excluded).
+    pub components: usize,
+    /// Vertices used by no face.
+    pub isolated_vertices: usize,
+}
+
+/// A decoded mesh, its topology and the report of its repairs.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    /// The mesh.
+    pub mesh: TriMesh,
+    /// Its adjacency.
+    pub topology: Topology,
+    /// What was found and repaired.
+    pub report: MeshReport,
+    /// The format read.
+    pub format: MeshFormat,
+}
+
+/// Raw parse result: positions and polygons, before repair.
+#[derive(Debug, Default)]
+pub(crate) struct RawMesh {
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    pub welded: usize,
+}
+
+impl RawMesh {
+    /// Appends a polygon as a fan of triangles, checking indices.
+    pub(crate) fn push_polygon(
+        &mut self,
+        format: MeshFormat,
+        line: Option<usize>,
+        poly: &[i64],
+        limits: &MeshLimits,
+    ) -> Result<(), MeshIoError> {
+        if poly.len() < 3 {
+            return Err(MeshIoError::corrupt(
+                format,
+                line,
+                format!("a face needs at least 3 vertices, got {}", poly.len()),
+            ));
+        }
+        let nv = self.positions.len() as i64;
+        let mut idx = Vec::with_capacity(poly.len());
+        for &i in poly {
+            if i < 0 {
+                return Err(MeshIoError::corrupt(
+                    format,
+                    line,
+                    format!("vertex index {i} is negative"),
+                ));
+            }
+            if i >= nv {
+                return Err(MeshIoError::Invalid(MeshError::IndexOutOfRange {
+                    face: self.triangles.len(),
+                    index: i as u64,
+                    vertices: nv as usize,
+                }));
+            }
+            idx.push(i as u32);
+        }
+        if self.triangles.len() + poly.len() - 2 > limits.max_faces {
+            limits.check(format, 0, (self.triangles.len() + poly.len() - 2) as u64)?;
+        }
+        for k in 1..idx.len() - 1 {
+            self.triangles.push([idx[0], idx[k], idx[k + 1]]);
+        }
+        Ok(())
+    }
+
+    /// Checks coordinates, drops degenerate and duplicate triangles, builds
+    /// the mesh and its topology.
+    pub(crate) fn finish(self, format: MeshFormat) -> Result<LoadedMesh, MeshIoError> {
+        if let Some(vertex) = self
+            .positions
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(MeshError::NonFinite { vertex }.into());
+        }
+        let input_faces = self.triangles.len();
+        let mut degenerate = 0;
+        let mut duplicate = 0;
+        let mut seen: HashSet<[u32; 3]> = HashSet::with_capacity(self.triangles.len());
+        let mut faces = Vec::with_capacity(self.triangles.len());
+        for f in self.triangles {
+            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+                degenerate += 1;
+                continue;
+            }
+            let p = f.map(|v| self.positions[v as usize]);
+            let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
+            let area2 = norm(cross(e1, e2));
+            let scale = norm(e1).max(norm(e2)).max(norm(sub(p[2], p[1])));
+            if area2.is_nan() || area2 <= 1e-12 * scale * scale {
+                degenerate += 1;
+                continue;
+            }
+            let mut key = f;
+            key.sort_unstable();
+            if !seen.insert(key) {
+                duplicate += 1;
+                continue;
+            }
+            faces.push(f);
+        }
+        let mesh = TriMesh::new(self.positions, faces)?;
+        let topology = Topology::new(&mesh);
+        let isolated = (0..mesh.num_vertices())
+            .filter(|&v| topology.faces_of(v as u32).is_empty())
+            .count();
+        let report = MeshReport {
+            vertices: mesh.num_vertices(),
+            faces: mesh.num_faces(),
+            input_faces,
+            welded_vertices: self.welded,
+            degenerate_faces: degenerate,
+            duplicate_faces: duplicate,
+            boundary_edges: topology.boundary_edges,
+            boundary_loops: boundary_loops(&mesh, &topology),
+            non_manifold_edges: topology.non_manifold_edges,
+            misoriented_edges: topology.misoriented_edges,
+            components: topology.components - isolated,
+            isolated_vertices: isolated,
+        };
+        Ok(LoadedMesh {
+            mesh,
+            topology,
+            report,
+            format,
+        })
+    }
+}
+
+/// Number of connected components of the graph of boundary edges.
+fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> usize {
+    let n = mesh.num_vertices();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    let mut on = vec![false; n];
+    // Count single-face edges only (non-manifold ones also have NONE opposites).
+    let mut count = std::collections::HashMap::<(u32, u32), u32>::new();
+    for f in mesh.faces() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    for (&(a, b), &c) in &count {
+        if c == 1 {
+            on[a as usize] = true;
+            on[b as usize] = true;
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            if ra != rb {
+                parent[ra as usize] = rb;
+            }
+        }
+    }
+    let _ = topo;
+    (0..n as u32)
+        .filter(|&v| on[v as usize] && find(&mut parent, v) == v)
+        .count()
+}
+
+/// Reads a mesh; `format` forces the format, else it is sniffed.
+pub fn read_mesh(
+    bytes: &[u8],
+    format: Option<MeshFormat>,
+    limits: &MeshLimits,
+) -> Result<LoadedMesh, MeshIoError> {
+    let format = match format {
+        Some(f) => f,
+        None => MeshFormat::sniff(bytes).ok_or(MeshIoError::UnknownFormat)?,
+    };
+    let raw = match format {
+        MeshFormat::Obj => obj::read(bytes, limits)?,
+        MeshFormat::Off => off::read(bytes, limits)?,
+        MeshFormat::Stl => stl::read(bytes, limits)?,
+        MeshFormat::Ply => ply::read(bytes, limits)?,
+    };
+    raw.finish(format)
+}
+
+/// Splits text into lines with their 1-based numbers, skipping blank lines
+/// and `#` comments.
+pub(crate) fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &str)> {
+    bytes
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let s = std::str::from_utf8(l).ok()?;
+            let s = s.split('#').next().unwrap_or_default().trim();
+            (!s.is_empty()).then_some((i + 1, s))
+        })
+}
+
+pub(crate) fn parse_f64(format: MeshFormat, line: usize, s: &str) -> Result<f64, MeshIoError> {
+    s.parse::<f64>()
+        .map_err(|_| MeshIoError::corrupt(format, Some(line), format!("'{s}' is not a number")))
+}

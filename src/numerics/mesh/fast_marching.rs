@@ -1,0 +1,420 @@
+//! Fast marching on triangulated surfaces (Kimmel & Sethian, PNAS 1998).
+//!
+//! Solves the eikonal equation `|∇_S u| = W` on the surface, `u = 0` at the
+//! sources, in `O(n log n)`: vertices are frozen in increasing order of `u`
+//! (a narrow band in a heap) and every frozen vertex updates its neighbours.
+//!
+//! **Local update.** In a triangle `C A B` with `u(A)`, `u(B)` frozen, the
+//! linear interpolant of `(u(A), u(B), u(C))` must have gradient norm `W`.
+//! With `e₁ = A − C`, `e₂ = B − C`, Gram matrix `G = [eᵢ·eⱼ]`, `Q = G⁻¹`,
+//! `t = (u(A), u(B))` and `δ = t − u(C)·𝟙`, this is the quadratic
+//! `δᵀ Q δ = W²`, whose larger root is accepted when the characteristic
+//! comes from inside the triangle (`Q δ ≤ 0` componentwise, i.e. `−∇u` at
+//! `C` lies in the wedge `A C B`); otherwise the edge updates
+//! `u(A) + W|CA|`, `u(B) + W|CB|` apply. First order in the mesh size.
+//!
+//! **Obtuse triangles.** At a corner with an angle above 90° the update is
+//! not monotone. As in Kimmel–Sethian, the triangles beyond the opposite
+//! edge are unfolded into the plane of the obtuse triangle until a vertex
+//! `V'` lands in the section of the wedge that splits it into two acute
+//! angles; `C` is then also updated from the virtual triangles `C A V'` and
+//! `C V' B` (and re-updated when `V` is frozen).
+//!
+//! **Weights.** `W` is per vertex; a triangle update uses the mean of its
+//! corners' weights (weighted geodesics, `W = 1` the geodesic distance).
+
+use super::sources::{check_weights, seeds, Seed, VertexGraph};
+use super::{dot, norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh, NONE};
+use crate::numerics::heap::IndexedHeap;
+use crate::numerics::Control;
+
+/// Options of [`fast_marching_distance`].
+#[derive(Debug, Clone, Copy)]
+pub struct FastMarchingOptions<'a> {
+    /// Per-vertex weight `W > 0` (cost per unit length); `None` means 1.
+    pub weights: Option<&'a [f64]>,
+    /// Vertices farther than this keep `+inf` (default `+inf`).
+    pub max_distance: f64,
+}
+
+impl Default for FastMarchingOptions<'_> {
+    fn default() -> Self {
+        Self {
+            weights: None,
+            max_distance: f64::INFINITY,
+        }
+    }
+}
+
+/// Unfolding depth limit for obtuse corners.
+const MAX_UNFOLD: usize = 12;
+
+/// Per-mesh tables of the fast marching: the one-ring graph and the virtual
+/// vertices of obtuse corners. Build once, march many times (farthest-point
+/// sampling).
+#[derive(Debug, Clone)]
+pub struct MarchPrep {
+    graph: VertexGraph,
+    /// Vertex -> faces (copied from the topology, CSR).
+    vf_offsets: Vec<u32>,
+    vf: Vec<u32>,
+    /// For half-edge slot `3 f + k` (corner `k` of face `f`): index into
+    /// `virtuals`, or `NONE`.
+    corner_virtual: Vec<u32>,
+    /// Virtual vertex: mesh vertex and its unfolded position in the corner's
+    /// local frame (C at the origin, A on the +x axis, B above).
+    virtuals: Vec<(u32, [f64; 2])>,
+    /// CSR: corners `(C)` to re-update when a virtual source vertex freezes.
+    dep_offsets: Vec<u32>,
+    deps: Vec<u32>,
+}
+
+fn local_frame(mesh: &TriMesh, f: usize, k: usize) -> ([f64; 2], [f64; 2]) {
+    let face = mesh.faces()[f];
+    let c = mesh.position(face[k]);
+    let e1 = sub(mesh.position(face[(k + 1) % 3]), c);
+    let e2 = sub(mesh.position(face[(k + 2) % 3]), c);
+    let l1 = norm(e1);
+    let x = dot(e1, e2) / l1.max(f64::MIN_POSITIVE);
+    let y = (dot(e2, e2) - x * x).max(0.0).sqrt();
+    ([l1, 0.0], [x, y])
+}
+
+impl MarchPrep {
+    /// Builds the tables in `O(F)` (plus the unfolding walks of obtuse corners).
+    pub fn new(mesh: &TriMesh, topo: &Topology) -> Self {
+        let nf = mesh.num_faces();
+        let mut corner_virtual = vec![NONE; 3 * nf];
+        let mut virtuals = Vec::new();
+        let mut dep_pairs: Vec<(u32, u32)> = Vec::new();
+        for f in 0..nf {
+            for k in 0..3 {
+                let (a2, b2) = local_frame(mesh, f, k);
+                if b2[0] >= 0.0 || b2[1] <= 0.0 {
+                    continue; // not obtuse (or degenerate)
+                }
+                if let Some((v, p)) = unfold(mesh, topo, f, k, a2, b2) {
+                    corner_virtual[3 * f + k] = virtuals.len() as u32;
+                    virtuals.push((v, p));
+                    dep_pairs.push((v, mesh.faces()[f][k]));
+                }
+            }
+        }
+        dep_pairs.sort_unstable();
+        dep_pairs.dedup();
+        let n = mesh.num_vertices();
+        let mut dep_offsets = vec![0u32; n + 1];
+        for &(v, _) in &dep_pairs {
+            dep_offsets[v as usize + 1] += 1;
+        }
+        for v in 0..n {
+            dep_offsets[v + 1] += dep_offsets[v];
+        }
+        Self {
+            graph: VertexGraph::new(mesh),
+            vf_offsets: topo.vertex_face_offsets.clone(),
+            vf: topo.vertex_faces.clone(),
+            corner_virtual,
+            virtuals,
+            dep_offsets,
+            deps: dep_pairs.into_iter().map(|(_, c)| c).collect(),
+        }
+    }
+
+    /// Number of obtuse corners that found a virtual vertex.
+    pub fn unfolded_corners(&self) -> usize {
+        self.virtuals.len()
+    }
+}
+
+/// Walks across the edge opposite the obtuse corner `k` of face `f` until an
+/// unfolded vertex lies in the acute section of the wedge.
+fn unfold(
+    mesh: &TriMesh,
+    topo: &Topology,
+    f: usize,
+    k: usize,
+    a2: [f64; 2],
+    b2: [f64; 2],
+) -> Option<(u32, [f64; 2])> {
+    let face = mesh.faces()[f];
+    let theta = b2[1].atan2(b2[0]);
+    let (lo, hi) = (
+        theta - std::f64::consts::FRAC_PI_2,
+        std::f64::consts::FRAC_PI_2,
+    );
+    let mid = 0.5 * theta;
+    // (vertex, 2D position) on the A side and on the B side.
+    let mut p = (face[(k + 1) % 3], a2);
+    let mut q = (face[(k + 2) % 3], b2);
+    let mut h = topo.opposite[3 * f + (k + 1) % 3];
+    for _ in 0..MAX_UNFOLD {
+        if h == NONE {
+            return None;
+        }
+        let g = mesh.faces()[h as usize / 3];
+        let v = *g.iter().find(|&&x| x != p.0 && x != q.0)?;
+        let lp = norm(sub(mesh.position(v), mesh.position(p.0)));
+        let lq = norm(sub(mesh.position(v), mesh.position(q.0)));
+        let d = [q.1[0] - p.1[0], q.1[1] - p.1[1]];
+        let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        if l <= 0.0 {
+            return None;
+        }
+        let u = [d[0] / l, d[1] / l];
+        let mut nrm = [-u[1], u[0]];
+        if nrm[0] * p.1[0] + nrm[1] * p.1[1] < 0.0 {
+            nrm = [-nrm[0], -nrm[1]];
+        }
+        let x = (lp * lp - lq * lq + l * l) / (2.0 * l);
+        let y = (lp * lp - x * x).max(0.0).sqrt();
+        let v2 = [
+            p.1[0] + x * u[0] + y * nrm[0],
+            p.1[1] + x * u[1] + y * nrm[1],
+        ];
+        let phi = v2[1].atan2(v2[0]);
+        if phi > lo && phi < hi {
+            return Some((v, v2));
+        }
+        // Continue across the edge the mid ray crosses.
+        let (e0, e1) = if phi > mid { (p.0, v) } else { (v, q.0) };
+        if phi > mid {
+            q = (v, v2);
+        } else {
+            p = (v, v2);
+        }
+        let gf = h as usize / 3;
+        let j = (0..3).find(|&j| {
+            let (s, t) = (g[j], g[(j + 1) % 3]);
+            (s == e0 && t == e1) || (s == e1 && t == e0)
+        })?;
+        h = topo.opposite[3 * gf + j];
+    }
+    None
+}
+
+/// Larger root of the triangle update (see the module docs), if upwind.
+/// `g11 = |e₁|²`, `g12 = e₁·e₂`, `g22 = |e₂|²`.
+#[inline]
+fn tri_update(g11: f64, g12: f64, g22: f64, da: f64, db: f64, w: f64) -> Option<f64> {
+    let det = g11 * g22 - g12 * g12;
+    if det <= 1e-14 * g11 * g22 {
+        return None;
+    }
+    // Q = G⁻¹ = [[g22, -g12], [-g12, g11]] / det.
+    let (q11, q12, q22) = (g22 / det, -g12 / det, g11 / det);
+    let a = q11 + 2.0 * q12 + q22;
+    let b = (q11 + q12) * da + (q12 + q22) * db;
+    let c = q11 * da * da + 2.0 * q12 * da * db + q22 * db * db - w * w;
+    let disc = b * b - a * c;
+    if disc < 0.0 || a <= 0.0 {
+        return None;
+    }
+    let d = (b + disc.sqrt()) / a;
+    let (x, y) = (da - d, db - d);
+    let tol = 1e-12 * (d.abs() + 1.0);
+    let ok = q11 * x + q12 * y <= tol && q12 * x + q22 * y <= tol;
+    (ok && d >= da.max(db)).then_some(d)
+}
+
+/// Fast marching distance from `sources`.
+pub fn fast_marching_distance(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    options: &FastMarchingOptions<'_>,
+    control: &Control<'_>,
+) -> Result<MeshDistance, MeshSolveError> {
+    check_weights(mesh, options.weights)?;
+    let prep = MarchPrep::new(mesh, topo);
+    let seeds = seeds(mesh, sources, options.weights)?;
+    let n = mesh.num_vertices();
+    let mut out = MeshDistance {
+        distance: vec![f64::INFINITY; n],
+        labels: vec![-1; n],
+    };
+    march(
+        mesh,
+        &prep,
+        &seeds,
+        options.weights,
+        options.max_distance,
+        &mut out,
+        control,
+    )?;
+    Ok(out)
+}
+
+/// One march from `seeds` that only lowers `out`: a vertex is updated only
+/// where the new value is below its current one, so with `out` holding the
+/// distances to earlier sources this is the incremental update of
+/// farthest-point sampling (the front stops at the Voronoi boundary).
+/// Returns the number of vertices frozen.
+pub fn march(
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    seeds: &[Seed],
+    weights: Option<&[f64]>,
+    max_distance: f64,
+    out: &mut MeshDistance,
+    control: &Control<'_>,
+) -> Result<usize, MeshSolveError> {
+    let n = mesh.num_vertices();
+    // Values of this march (the frozen ones are final).
+    let mut u = vec![f64::INFINITY; n];
+    let mut lab = vec![-1i32; n];
+    let mut frozen = vec![false; n];
+    let mut heap = IndexedHeap::new(n);
+    for s in seeds {
+        let v = s.vertex as usize;
+        if s.distance < out.distance[v] && s.distance <= max_distance {
+            u[v] = s.distance;
+            lab[v] = s.label;
+            heap.push_or_decrease(s.vertex, s.distance);
+        }
+    }
+    let wt = |v: u32| weights.map_or(1.0, |w| w[v as usize]);
+    let mut count = 0usize;
+    let mut todo: Vec<u32> = Vec::with_capacity(32);
+    while let Some((v, d)) = heap.pop() {
+        if d > max_distance {
+            break;
+        }
+        frozen[v as usize] = true;
+        out.distance[v as usize] = d;
+        out.labels[v as usize] = lab[v as usize];
+        count += 1;
+        if count.is_multiple_of(4096) {
+            if control.is_cancelled() {
+                return Err(MeshSolveError::Cancelled);
+            }
+            control.report(count as f64 / n as f64);
+        }
+        todo.clear();
+        todo.extend_from_slice(prep.graph.of(v));
+        let (a, b) = (
+            prep.dep_offsets[v as usize] as usize,
+            prep.dep_offsets[v as usize + 1] as usize,
+        );
+        todo.extend_from_slice(&prep.deps[a..b]);
+        for &c in &todo {
+            if frozen[c as usize] {
+                continue;
+            }
+            let (val, l) = pull(mesh, prep, c, &u, &lab, &frozen, &wt, weights.is_some());
+            if val < u[c as usize] && val < out.distance[c as usize] {
+                u[c as usize] = val;
+                lab[c as usize] = l;
+                heap.push_or_decrease(c, val);
+            }
+        }
+    }
+    Ok(count)
+}
+
+/// The best value of `c` from its frozen neighbours over all incident faces.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn pull(
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    c: u32,
+    u: &[f64],
+    lab: &[i32],
+    frozen: &[bool],
+    wt: &impl Fn(u32) -> f64,
+    weighted: bool,
+) -> (f64, i32) {
+    let mut best = (f64::INFINITY, -1);
+    let pc = mesh.position(c);
+    let wc = wt(c);
+    let faces = mesh.faces();
+    let mut consider = |val: f64, l: i32| {
+        if val < best.0 {
+            best = (val, l);
+        }
+    };
+    for &f in topo_faces(mesh, prep, c) {
+        let face = faces[f as usize];
+        let Some(k) = face.iter().position(|&x| x == c) else {
+            continue;
+        };
+        let (ia, ib) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+        let (fa, fb) = (frozen[ia as usize], frozen[ib as usize]);
+        if !fa && !fb {
+            continue;
+        }
+        let e1 = sub(mesh.position(ia), pc);
+        let e2 = sub(mesh.position(ib), pc);
+        let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+        let w_ab = if weighted {
+            (wc + wt(ia) + wt(ib)) / 3.0
+        } else {
+            1.0
+        };
+        let near = |x: u32, y: u32| {
+            if u[x as usize] <= u[y as usize] {
+                lab[x as usize]
+            } else {
+                lab[y as usize]
+            }
+        };
+        if fa {
+            consider(
+                u[ia as usize] + 0.5 * (wc + wt(ia)) * g11.sqrt(),
+                lab[ia as usize],
+            );
+        }
+        if fb {
+            consider(
+                u[ib as usize] + 0.5 * (wc + wt(ib)) * g22.sqrt(),
+                lab[ib as usize],
+            );
+        }
+        if fa && fb {
+            if let Some(val) = tri_update(g11, g12, g22, u[ia as usize], u[ib as usize], w_ab) {
+                consider(val, near(ia, ib));
+            }
+        }
+        let slot = prep.corner_virtual[3 * f as usize + k];
+        if slot != NONE {
+            let (iv, p) = prep.virtuals[slot as usize];
+            if frozen[iv as usize] {
+                let (a2, b2) = local_frame(mesh, f as usize, k);
+                let gvv = p[0] * p[0] + p[1] * p[1];
+                let wv = if weighted {
+                    (wc + wt(ia) + wt(ib) + wt(iv)) / 4.0
+                } else {
+                    1.0
+                };
+                consider(u[iv as usize] + wv * gvv.sqrt(), lab[iv as usize]);
+                if fa {
+                    let g12v = a2[0] * p[0] + a2[1] * p[1];
+                    if let Some(val) =
+                        tri_update(g11, g12v, gvv, u[ia as usize], u[iv as usize], wv)
+                    {
+                        consider(val, near(ia, iv));
+                    }
+                }
+                if fb {
+                    let g12v = b2[0] * p[0] + b2[1] * p[1];
+                    if let Some(val) =
+                        tri_update(gvv, g12v, g22, u[iv as usize], u[ib as usize], wv)
+                    {
+                        consider(val, near(iv, ib));
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
+#[inline]
+fn topo_faces<'a>(_mesh: &TriMesh, prep: &'a MarchPrep, c: u32) -> &'a [u32] {
+    let (a, b) = (
+        prep.vf_offsets[c as usize] as usize,
+        prep.vf_offsets[c as usize + 1] as usize,
+    );
+    &prep.vf[a..b]
+}

@@ -1,0 +1,425 @@
+//! The heat method (Crane, Weischedel & Wardetzky, ACM TOG 2013).
+//!
+//! 1. Integrate the heat flow for a time `t`: `(M + t L) u = δ`, one
+//!    backward-Euler step, `M` the lumped mass matrix (a third of the
+//!    incident face areas per vertex), `L` the cotangent Laplacian
+//!    (`L_ij = −½(cot α_ij + cot β_ij)`, `L_ii = −Σ_j L_ij`, symmetric
+//!    positive semi-definite), `δ` the sources (1 at a source vertex, the
+//!    barycentric weights at the corners of a source face).
+//! 2. Normalise the gradient per face: `X = −∇u / |∇u|`.
+//! 3. Solve the Poisson equation `L φ = −∇·X` (integrated divergence
+//!    `(∇·X)_i = ½ Σ_f cot θ₁ (e₁·X) + cot θ₂ (e₂·X)`), with the right-hand
+//!    side projected to zero mean per connected component and `L + εM`
+//!    (`ε = 10⁻⁹ / h²`) factored so that the system is definite;
+//!    `φ` is shifted per component so that its smallest value at the
+//!    sources is 0.
+//!
+//! Both matrices share one sparsity pattern: one symbolic factorisation
+//! (AMD fill-reducing ordering, supernodal when worthwhile: faer's default)
+//! and two numeric ones, kept in [`HeatSolver`] so that every further query
+//! costs two pairs of triangular solves and two sparse sweeps over the faces.
+//!
+//! `t = m h²` with `h` the mean edge length (`m = 1` by default). The
+//! solution of step 1 decays like `exp(−d/√t)`, which underflows `f64` once
+//! `d / √t ≳ 700`: on fine meshes (an icosphere of 655k vertices) the far
+//! side of the surface would get `u = 0` and a meaningless gradient. The
+//! solver therefore uses `t = max(m h², (D/600)²)`, `D` an upper bound of
+//! the geodesic diameter (twice a Dijkstra eccentricity); [`HeatSolver::t`]
+//! reports the value used. Accuracy is first order in `h` (about 1 %
+//! mean relative error on a 10k-vertex icosphere).
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+
+use super::dijkstra::dijkstra_distance;
+use super::sources::VertexGraph;
+use super::{cross, dot, norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
+use crate::numerics::Control;
+
+/// Options of [`HeatSolver::new`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeatOptions {
+    /// Time step factor: `t = m h²` (default 1).
+    pub m: f64,
+    /// Raise `t` where needed so that the heat does not underflow (default true).
+    pub underflow_guard: bool,
+}
+
+impl Default for HeatOptions {
+    fn default() -> Self {
+        Self {
+            m: 1.0,
+            underflow_guard: true,
+        }
+    }
+}
+
+/// A prefactored heat-method solver for one mesh.
+#[derive(Debug)]
+pub struct HeatSolver {
+    n: usize,
+    t: f64,
+    h: f64,
+    mass: Vec<f64>,
+    /// Per face: cotangents of the three corners (0 for degenerate faces).
+    cots: Vec<[f64; 3]>,
+    /// Per face: 2·area (0 for degenerate faces) and unit normal.
+    normals: Vec<([f64; 3], f64)>,
+    heat: Llt<usize, f64>,
+    poisson: Llt<usize, f64>,
+    component: Vec<u32>,
+    components: usize,
+    graph: VertexGraph,
+}
+
+fn numerical(what: &str, e: impl std::fmt::Debug) -> MeshSolveError {
+    MeshSolveError::Numerical(format!("{what}: {e:?}"))
+}
+
+impl HeatSolver {
+    /// Assembles `M`, `L` and factors `M + tL` and `L + εM`.
+    pub fn new(
+        mesh: &TriMesh,
+        topo: &Topology,
+        options: &HeatOptions,
+        control: &Control<'_>,
+    ) -> Result<Self, MeshSolveError> {
+        if !(options.m.is_finite() && options.m > 0.0) {
+            return Err(MeshSolveError::InvalidOption {
+                option: "m",
+                reason: format!("must be finite and > 0, got {}", options.m),
+            });
+        }
+        let n = mesh.num_vertices();
+        let h = mesh.mean_edge_length();
+        if !(h.is_finite() && h > 0.0) {
+            return Err(MeshSolveError::Numerical("mean edge length is zero".into()));
+        }
+        let mut t = options.m * h * h;
+        if options.underflow_guard {
+            // One seed per component: eccentricities of the component roots.
+            let mut roots = Vec::new();
+            let mut seen = vec![false; topo.components];
+            for v in 0..n {
+                let c = topo.component[v] as usize;
+                if !seen[c] && !topo.faces_of(v as u32).is_empty() {
+                    seen[c] = true;
+                    roots.push(SurfacePoint::Vertex(v as u32));
+                }
+            }
+            let d = dijkstra_distance(mesh, &roots, None, f64::INFINITY, control)?;
+            let ecc = d
+                .distance
+                .iter()
+                .filter(|x| x.is_finite())
+                .fold(0.0f64, |a, &b| a.max(b));
+            let floor = (2.0 * ecc / 600.0).powi(2);
+            t = t.max(floor);
+        }
+        let faces = mesh.faces();
+        let mut mass = vec![0.0; n];
+        let mut cots = Vec::with_capacity(faces.len());
+        let mut normals = Vec::with_capacity(faces.len());
+        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * faces.len());
+        for f in faces {
+            let p = f.map(|v| mesh.position(v));
+            let nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            let a2 = norm(nrm);
+            let scale =
+                dot(sub(p[1], p[0]), sub(p[1], p[0])).max(dot(sub(p[2], p[0]), sub(p[2], p[0])));
+            if !a2.is_finite() || a2 <= 1e-12 * scale {
+                cots.push([0.0; 3]);
+                normals.push(([0.0; 3], 0.0));
+                continue;
+            }
+            let mut c = [0.0; 3];
+            for k in 0..3 {
+                let (e1, e2) = (sub(p[(k + 1) % 3], p[k]), sub(p[(k + 2) % 3], p[k]));
+                c[k] = dot(e1, e2) / a2;
+            }
+            for k in 0..3 {
+                mass[f[k] as usize] += a2 / 6.0;
+                // The edge opposite corner k joins the other two corners.
+                let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
+                let w = 0.5 * c[k];
+                entries.push((i, j, -w));
+                entries.push((j, i, -w));
+                entries.push((i, i, w));
+                entries.push((j, j, w));
+            }
+            cots.push(c);
+            normals.push(([nrm[0] / a2, nrm[1] / a2, nrm[2] / a2], a2));
+        }
+        // Every vertex gets a diagonal entry (isolated vertices included).
+        for (v, m) in mass.iter_mut().enumerate() {
+            if *m <= 0.0 {
+                *m = h * h * 1e-3;
+            }
+            entries.push((v, v, 0.0));
+        }
+        entries.sort_unstable_by_key(|a| (a.1, a.0));
+        let mut lap: Vec<(usize, usize, f64)> = Vec::with_capacity(entries.len() / 2);
+        for (i, j, w) in entries {
+            match lap.last_mut() {
+                Some(last) if last.0 == i && last.1 == j => last.2 += w,
+                _ => lap.push((i, j, w)),
+            }
+        }
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        let eps = 1e-9 / (h * h);
+        let build = |diag: &dyn Fn(usize) -> f64, s: f64| {
+            let trip: Vec<Triplet<usize, usize, f64>> = lap
+                .iter()
+                .filter(|e| e.0 >= e.1)
+                .map(|&(i, j, w)| Triplet::new(i, j, s * w + if i == j { diag(i) } else { 0.0 }))
+                .collect();
+            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip)
+                .map_err(|e| numerical("assembly", e))
+        };
+        let a = build(&|i| mass[i], t)?;
+        let b = build(&|i| eps * mass[i], 1.0)?;
+        let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
+            .map_err(|e| numerical("symbolic factorisation", e))?;
+        control.report(0.2);
+        let heat = Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)
+            .map_err(|e| numerical("factorisation of M + tL", e))?;
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        control.report(0.6);
+        let poisson = Llt::try_new_with_symbolic(symbolic, b.as_ref(), Side::Lower)
+            .map_err(|e| numerical("factorisation of L", e))?;
+        control.report(1.0);
+        Ok(Self {
+            n,
+            t,
+            h,
+            mass,
+            cots,
+            normals,
+            heat,
+            poisson,
+            component: topo.component.clone(),
+            components: topo.components,
+            graph: VertexGraph::new(mesh),
+        })
+    }
+
+    /// The time step used.
+    pub fn t(&self) -> f64 {
+        self.t
+    }
+
+    /// The mean edge length `h`.
+    pub fn h(&self) -> f64 {
+        self.h
+    }
+
+    /// Heat-method distance from `sources` (two solves), `+inf` beyond
+    /// `max_distance` and in components without a source. Labels: each
+    /// vertex, in increasing distance, takes the label of the neighbour `w`
+    /// minimising `φ(w) + |vw|` among those already labelled.
+    pub fn distance(
+        &self,
+        mesh: &TriMesh,
+        sources: &[SurfacePoint],
+        max_distance: f64,
+        control: &Control<'_>,
+    ) -> Result<MeshDistance, MeshSolveError> {
+        if mesh.num_vertices() != self.n {
+            return Err(MeshSolveError::InvalidOption {
+                option: "mesh",
+                reason: "the solver was built for another mesh".into(),
+            });
+        }
+        if sources.is_empty() {
+            return Err(MeshSolveError::NoSources);
+        }
+        let n = self.n;
+        let faces = mesh.faces();
+        let mut rhs = Mat::<f64>::zeros(n, 1);
+        let mut has_source = vec![false; self.components];
+        for (index, s) in sources.iter().enumerate() {
+            s.validate(mesh)
+                .map_err(|reason| MeshSolveError::InvalidSource { index, reason })?;
+            match *s {
+                SurfacePoint::Vertex(v) => {
+                    rhs[(v as usize, 0)] += 1.0;
+                    has_source[self.component[v as usize] as usize] = true;
+                }
+                SurfacePoint::Face { face, bary } => {
+                    let f = faces[face as usize];
+                    for k in 0..3 {
+                        rhs[(f[k] as usize, 0)] += bary[k];
+                    }
+                    has_source[self.component[f[0] as usize] as usize] = true;
+                }
+            }
+        }
+        self.heat.solve_in_place(rhs.as_mut());
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        control.report(0.4);
+        // Normalised gradient and its integrated divergence.
+        let mut div = vec![0.0; n];
+        for (fi, f) in faces.iter().enumerate() {
+            let (nrm, a2) = self.normals[fi];
+            if a2 <= 0.0 {
+                continue;
+            }
+            let p = f.map(|v| mesh.position(v));
+            let u = f.map(|v| rhs[(v as usize, 0)]);
+            // ∇u = (1 / 2A) Σ_k u_k (N × e_k), e_k the edge opposite corner k.
+            let mut g = [0.0; 3];
+            for k in 0..3 {
+                let e = sub(p[(k + 2) % 3], p[(k + 1) % 3]);
+                let r = cross(nrm, e);
+                for c in 0..3 {
+                    g[c] += u[k] * r[c];
+                }
+            }
+            let gn = norm(g);
+            if !gn.is_finite() || gn <= 0.0 {
+                continue;
+            }
+            let x = [-g[0] / gn, -g[1] / gn, -g[2] / gn];
+            let c = self.cots[fi];
+            for k in 0..3 {
+                let (i1, i2) = ((k + 1) % 3, (k + 2) % 3);
+                let e1 = sub(p[i1], p[k]);
+                let e2 = sub(p[i2], p[k]);
+                // cot of the angle opposite e1 is at corner i2, opposite e2 at i1.
+                div[f[k] as usize] += 0.5 * (c[i2] * dot(e1, x) + c[i1] * dot(e2, x));
+            }
+        }
+        // Zero mean per component (a closed surface has none; boundaries leak).
+        let mut sum = vec![0.0; self.components];
+        let mut area = vec![0.0; self.components];
+        for (v, &dv) in div.iter().enumerate() {
+            let c = self.component[v] as usize;
+            sum[c] += dv;
+            area[c] += self.mass[v];
+        }
+        let mut phi = Mat::<f64>::zeros(n, 1);
+        for v in 0..n {
+            let c = self.component[v] as usize;
+            phi[(v, 0)] = -(div[v] - self.mass[v] * sum[c] / area[c]);
+        }
+        // L φ = −∇·X with L positive semi-definite; the sign convention
+        // makes φ increase away from the sources.
+        self.poisson.solve_in_place(phi.as_mut());
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        control.report(0.8);
+        let mut phi: Vec<f64> = (0..n).map(|v| phi[(v, 0)]).collect();
+        // Shift per component so that the smallest source value is 0.
+        let mut shift = vec![f64::INFINITY; self.components];
+        for s in sources {
+            let (c, val) = match *s {
+                SurfacePoint::Vertex(v) => (self.component[v as usize], phi[v as usize]),
+                SurfacePoint::Face { face, bary } => {
+                    let f = faces[face as usize];
+                    (
+                        self.component[f[0] as usize],
+                        (0..3).map(|k| bary[k] * phi[f[k] as usize]).sum(),
+                    )
+                }
+            };
+            shift[c as usize] = shift[c as usize].min(val);
+        }
+        for (v, p) in phi.iter_mut().enumerate() {
+            let c = self.component[v] as usize;
+            *p = if has_source[c] && p.is_finite() {
+                (*p - shift[c]).max(0.0)
+            } else {
+                f64::INFINITY
+            };
+        }
+        let mut out = MeshDistance {
+            labels: self.labels(mesh, sources, &phi),
+            distance: phi,
+        };
+        for v in 0..n {
+            if out.distance[v].is_nan() || out.distance[v] > max_distance {
+                out.distance[v] = f64::INFINITY;
+                out.labels[v] = -1;
+            }
+        }
+        control.report(1.0);
+        Ok(out)
+    }
+
+    fn labels(&self, mesh: &TriMesh, sources: &[SurfacePoint], phi: &[f64]) -> Vec<i32> {
+        let n = self.n;
+        let mut labels = vec![-1i32; n];
+        let mut seed_d = vec![f64::INFINITY; n];
+        for (i, s) in sources.iter().enumerate() {
+            let (vs, pt): (Vec<u32>, [f64; 3]) = match *s {
+                SurfacePoint::Vertex(v) => (vec![v], mesh.position(v)),
+                SurfacePoint::Face { face, .. } => {
+                    (mesh.faces()[face as usize].to_vec(), s.position(mesh))
+                }
+            };
+            for v in vs {
+                let d = norm(sub(mesh.position(v), pt));
+                if d < seed_d[v as usize] {
+                    seed_d[v as usize] = d;
+                    labels[v as usize] = i as i32;
+                }
+            }
+        }
+        let mut order: Vec<u32> = (0..n as u32)
+            .filter(|&v| phi[v as usize].is_finite())
+            .collect();
+        order.sort_unstable_by(|&a, &b| phi[a as usize].total_cmp(&phi[b as usize]));
+        for &v in &order {
+            if labels[v as usize] >= 0 {
+                continue;
+            }
+            let pv = mesh.position(v);
+            let mut best = (f64::INFINITY, -1);
+            for &w in self.graph.of(v) {
+                let l = labels[w as usize];
+                if l < 0 {
+                    continue;
+                }
+                let cand = phi[w as usize] + norm(sub(mesh.position(w), pv));
+                if cand < best.0 {
+                    best = (cand, l);
+                }
+            }
+            labels[v as usize] = best.1;
+        }
+        // Vertices whose neighbours all came later (heat error near ridges):
+        // flood from labelled neighbours until nothing changes.
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for &v in &order {
+                if labels[v as usize] >= 0 {
+                    continue;
+                }
+                let pv = mesh.position(v);
+                let mut best = (f64::INFINITY, -1);
+                for &w in self.graph.of(v) {
+                    let l = labels[w as usize];
+                    let cand = phi[w as usize] + norm(sub(mesh.position(w), pv));
+                    if l >= 0 && cand < best.0 {
+                        best = (cand, l);
+                    }
+                }
+                if best.1 >= 0 {
+                    labels[v as usize] = best.1;
+                    changed = true;
+                }
+            }
+        }
+        labels
+    }
+}

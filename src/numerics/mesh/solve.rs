@@ -1,0 +1,109 @@
+//! One entry point over the surface distance methods.
+
+use super::dijkstra::dijkstra_distance;
+use super::fast_marching::{fast_marching_distance, FastMarchingOptions};
+use super::heat::{HeatOptions, HeatSolver};
+use super::{MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
+use crate::numerics::Control;
+
+/// A surface distance method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MeshMethod {
+    /// Kimmel–Sethian fast marching (first order, `O(n log n)`).
+    FastMarching,
+    /// The heat method (first order; prefactored, two solves per query).
+    Heat,
+    /// Exact polyhedral distance (window propagation).
+    Exact,
+    /// Dijkstra on the edge graph (baseline; does not converge).
+    Dijkstra,
+}
+
+/// Options common to every method.
+#[derive(Debug, Clone, Copy)]
+pub struct MeshDistanceOptions<'a> {
+    /// The method.
+    pub method: MeshMethod,
+    /// Vertices farther than this get `+inf` and label -1.
+    pub max_distance: f64,
+    /// Per-vertex weight `W` (fast marching and Dijkstra only).
+    pub weights: Option<&'a [f64]>,
+    /// Heat method options.
+    pub heat: HeatOptions,
+}
+
+impl Default for MeshDistanceOptions<'_> {
+    fn default() -> Self {
+        Self {
+            method: MeshMethod::FastMarching,
+            max_distance: f64::INFINITY,
+            weights: None,
+            heat: HeatOptions::default(),
+        }
+    }
+}
+
+/// Distance and nearest-source labels from `sources` with the chosen
+/// method. `heat` may hand in a prefactored solver for this mesh (it is
+/// built on the spot otherwise).
+pub fn mesh_distance(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    options: &MeshDistanceOptions<'_>,
+    heat: Option<&HeatSolver>,
+    control: &Control<'_>,
+) -> Result<MeshDistance, MeshSolveError> {
+    if options.max_distance.is_nan() || options.max_distance < 0.0 {
+        return Err(MeshSolveError::InvalidOption {
+            option: "max_distance",
+            reason: "must be >= 0".into(),
+        });
+    }
+    if options.weights.is_some() && matches!(options.method, MeshMethod::Heat | MeshMethod::Exact) {
+        return Err(MeshSolveError::InvalidOption {
+            option: "weights",
+            reason: "weights are supported by fast_marching and dijkstra only".into(),
+        });
+    }
+    match options.method {
+        MeshMethod::FastMarching => fast_marching_distance(
+            mesh,
+            topo,
+            sources,
+            &FastMarchingOptions {
+                weights: options.weights,
+                max_distance: options.max_distance,
+            },
+            control,
+        ),
+        MeshMethod::Dijkstra => dijkstra_distance(
+            mesh,
+            sources,
+            options.weights,
+            options.max_distance,
+            control,
+        ),
+        MeshMethod::Heat => match heat {
+            Some(solver) => solver.distance(mesh, sources, options.max_distance, control),
+            None => HeatSolver::new(mesh, topo, &options.heat, control)?.distance(
+                mesh,
+                sources,
+                options.max_distance,
+                control,
+            ),
+        },
+        MeshMethod::Exact => exact(mesh, topo, sources, options.max_distance, control),
+    }
+}
+
+/// The exact polyhedral distance (window propagation, `exact.rs`).
+fn exact(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    max_distance: f64,
+    control: &Control<'_>,
+) -> Result<MeshDistance, MeshSolveError> {
+    super::exact::exact_distance(mesh, topo, sources, max_distance, control)
+}

@@ -1,0 +1,130 @@
+//! Source initialisation shared by the surface solvers, and the vertex
+//! one-ring graph.
+
+use super::{norm, sub, MeshSolveError, SurfacePoint, TriMesh};
+
+/// A vertex value fixed before propagation: vertex, distance, source label.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seed {
+    /// The vertex.
+    pub vertex: u32,
+    /// Its initial distance.
+    pub distance: f64,
+    /// Index of the source it comes from.
+    pub label: i32,
+}
+
+/// Validates `sources` and turns them into vertex seeds.
+///
+/// A vertex source gives distance 0 at the vertex; a point inside face `f`
+/// gives its three vertices the straight-line distance to the point, scaled
+/// by the mean weight `W` of the face's vertices (exact on a flat face for
+/// `W = 1`, since the face is developable and geodesics inside it are
+/// segments). When two sources seed the same vertex the smaller value wins.
+pub fn seeds(
+    mesh: &TriMesh,
+    sources: &[SurfacePoint],
+    weights: Option<&[f64]>,
+) -> Result<Vec<Seed>, MeshSolveError> {
+    if sources.is_empty() {
+        return Err(MeshSolveError::NoSources);
+    }
+    let mut out: Vec<Seed> = Vec::with_capacity(sources.len() * 3);
+    for (index, s) in sources.iter().enumerate() {
+        s.validate(mesh)
+            .map_err(|reason| MeshSolveError::InvalidSource { index, reason })?;
+        let label = index as i32;
+        match *s {
+            SurfacePoint::Vertex(v) => out.push(Seed {
+                vertex: v,
+                distance: 0.0,
+                label,
+            }),
+            SurfacePoint::Face { face, .. } => {
+                let p = s.position(mesh);
+                let f = mesh.faces()[face as usize];
+                let w =
+                    weights.map_or(1.0, |w| f.iter().map(|&v| w[v as usize]).sum::<f64>() / 3.0);
+                for v in f {
+                    out.push(Seed {
+                        vertex: v,
+                        distance: w * norm(sub(mesh.position(v), p)),
+                        label,
+                    });
+                }
+            }
+        }
+    }
+    // Keep the smallest value per vertex (stable: lower label wins ties).
+    out.sort_by(|a, b| {
+        a.vertex
+            .cmp(&b.vertex)
+            .then(a.distance.total_cmp(&b.distance))
+            .then(a.label.cmp(&b.label))
+    });
+    out.dedup_by_key(|s| s.vertex);
+    Ok(out)
+}
+
+/// Checks a per-vertex weight `W` (length, finite, > 0).
+pub fn check_weights(mesh: &TriMesh, weights: Option<&[f64]>) -> Result<(), MeshSolveError> {
+    if let Some(w) = weights {
+        if w.len() != mesh.num_vertices() {
+            return Err(MeshSolveError::InvalidOption {
+                option: "weights",
+                reason: format!("{} values for {} vertices", w.len(), mesh.num_vertices()),
+            });
+        }
+        if let Some(i) = w.iter().position(|x| !x.is_finite() || *x <= 0.0) {
+            return Err(MeshSolveError::InvalidOption {
+                option: "weights",
+                reason: format!("weight of vertex {i} is {} (must be finite and > 0)", w[i]),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The one-ring graph in CSR form: neighbours of `v` are
+/// `neighbours[offsets[v]..offsets[v + 1]]`, sorted, without duplicates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VertexGraph {
+    /// Row offsets (`n + 1`).
+    pub offsets: Vec<u32>,
+    /// Neighbour lists.
+    pub neighbours: Vec<u32>,
+}
+
+impl VertexGraph {
+    /// Builds the graph of the mesh's edges in `O(F log F)`.
+    pub fn new(mesh: &TriMesh) -> Self {
+        let n = mesh.num_vertices();
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(6 * mesh.num_faces());
+        for f in mesh.faces() {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                pairs.push((a, b));
+                pairs.push((b, a));
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut offsets = vec![0u32; n + 1];
+        for &(a, _) in &pairs {
+            offsets[a as usize + 1] += 1;
+        }
+        for v in 0..n {
+            offsets[v + 1] += offsets[v];
+        }
+        Self {
+            offsets,
+            neighbours: pairs.into_iter().map(|(_, b)| b).collect(),
+        }
+    }
+
+    /// Neighbours of `v`.
+    #[inline]
+    pub fn of(&self, v: u32) -> &[u32] {
+        &self.neighbours[self.offsets[v as usize] as usize..self.offsets[v as usize + 1] as usize]
+    }
+}

@@ -1,0 +1,324 @@
+//! Pieces shared by the mesh operations (`mesh.distance`, `mesh.voronoi`,
+//! `mesh.paths`, `mesh.sample`): points on a surface, the method name, the
+//! mesh input handed in by the caller, and the call of the core.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::{Inputs, OpError, OpLimits};
+use crate::io::mesh::MeshReport;
+use crate::numerics::mesh::{
+    mesh_distance, HeatOptions, HeatSolver, MeshDistance, MeshDistanceOptions, MeshMethod,
+    MeshSolveError, SurfacePoint, Topology, TriMesh,
+};
+use crate::numerics::Control;
+
+/// A decoded mesh dataset, as operations receive it.
+#[derive(Debug)]
+pub struct MeshInput {
+    /// The mesh.
+    pub mesh: TriMesh,
+    /// Its adjacency.
+    pub topology: Topology,
+    /// Its report (counts, repairs).
+    pub report: MeshReport,
+}
+
+/// A point on the surface: `{"vertex": 12}` or
+/// `{"face": 3, "bary": [0.2, 0.3, 0.5]}` (barycentric coordinates in the
+/// order of the face's vertices, >= 0, summing to 1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeshPointSpec {
+    /// A vertex index (0-based, in the dataset's vertex order).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertex: Option<u32>,
+    /// A face index (0-based); needs `bary`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub face: Option<u32>,
+    /// Barycentric coordinates inside `face`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bary: Option<[f64; 3]>,
+}
+
+impl MeshPointSpec {
+    /// The core's point, checked for shape (not yet against a mesh).
+    pub fn to_point(&self, field: &str) -> Result<SurfacePoint, OpError> {
+        match (self.vertex, self.face, self.bary) {
+            (Some(v), None, None) => Ok(SurfacePoint::Vertex(v)),
+            (None, Some(face), Some(bary)) => Ok(SurfacePoint::Face { face, bary }),
+            (None, Some(_), None) => Err(OpError::invalid(
+                format!("{field}.bary"),
+                "a face point needs `bary`",
+            )),
+            _ => Err(OpError::invalid(
+                field,
+                "give either `vertex`, or `face` with `bary`",
+            )),
+        }
+    }
+}
+
+/// The surface distance method. `fast-marching` is accepted for `fast_marching`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshMethodSpec {
+    /// Kimmel–Sethian fast marching, first order, with unfolding of obtuse triangles.
+    #[default]
+    #[serde(alias = "fast-marching")]
+    FastMarching,
+    /// The heat method: prefactored per mesh dataset, two solves per query.
+    Heat,
+    /// Exact polyhedral distance (window propagation).
+    Exact,
+    /// Dijkstra on the edges (baseline; overestimates).
+    Dijkstra,
+}
+
+impl From<MeshMethodSpec> for MeshMethod {
+    fn from(m: MeshMethodSpec) -> Self {
+        match m {
+            MeshMethodSpec::FastMarching => MeshMethod::FastMarching,
+            MeshMethodSpec::Heat => MeshMethod::Heat,
+            MeshMethodSpec::Exact => MeshMethod::Exact,
+            MeshMethodSpec::Dijkstra => MeshMethod::Dijkstra,
+        }
+    }
+}
+
+/// Options of the heat method.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct HeatSpec {
+    /// Time step factor `m` in `t = m·h²` (`h` the mean edge length). Default 1.
+    #[serde(default = "one")]
+    #[schema(exclusive_minimum = 0.0)]
+    pub m: f64,
+}
+
+impl Default for HeatSpec {
+    fn default() -> Self {
+        Self { m: 1.0 }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Checks the common fields.
+pub(crate) fn validate_common(
+    sources: &[MeshPointSpec],
+    max_distance: Option<f64>,
+    heat: &HeatSpec,
+    limits: &OpLimits,
+) -> Result<Vec<SurfacePoint>, OpError> {
+    if sources.is_empty() {
+        return Err(OpError::invalid("sources", "at least one source is needed"));
+    }
+    if sources.len() > limits.max_sources {
+        return Err(OpError::TooLarge {
+            field: "sources".into(),
+            reason: format!(
+                "{} sources, more than the limit of {}",
+                sources.len(),
+                limits.max_sources
+            ),
+        });
+    }
+    if let Some(d) = max_distance {
+        if d.is_nan() || d < 0.0 {
+            return Err(OpError::invalid("max_distance", "must be >= 0"));
+        }
+    }
+    if !(heat.m.is_finite() && heat.m > 0.0) {
+        return Err(OpError::invalid("heat.m", "must be finite and > 0"));
+    }
+    sources
+        .iter()
+        .enumerate()
+        .map(|(i, s)| s.to_point(&format!("sources[{i}]")))
+        .collect()
+}
+
+/// The mesh named by `id`, or the error naming `field`.
+pub(crate) fn get_mesh(
+    inputs: &dyn Inputs,
+    field: &str,
+    id: &str,
+) -> Result<Arc<MeshInput>, OpError> {
+    inputs.mesh(id).ok_or_else(|| OpError::UnknownDataset {
+        field: field.into(),
+        id: id.into(),
+    })
+}
+
+/// Checks points against the mesh.
+pub(crate) fn check_points(
+    mesh: &TriMesh,
+    points: &[SurfacePoint],
+    field: &str,
+) -> Result<(), OpError> {
+    for (i, p) in points.iter().enumerate() {
+        p.validate(mesh)
+            .map_err(|reason| OpError::invalid(format!("{field}[{i}]"), reason))?;
+    }
+    Ok(())
+}
+
+/// Maps a core error to an operation error.
+pub(crate) fn solve_error(e: MeshSolveError) -> OpError {
+    match e {
+        MeshSolveError::Cancelled => OpError::Cancelled,
+        MeshSolveError::NoSources => OpError::invalid("sources", e.to_string()),
+        MeshSolveError::InvalidSource { index, reason } => {
+            OpError::invalid(format!("sources[{index}]"), reason)
+        }
+        MeshSolveError::InvalidOption { option, reason } => {
+            let field = if option == "m" { "heat.m" } else { option };
+            OpError::invalid(field, reason)
+        }
+        MeshSolveError::Numerical(reason) => OpError::invalid("mesh", reason),
+    }
+}
+
+/// What the heat method reports.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct HeatInfo {
+    /// The time step used.
+    pub t: f64,
+    /// The factor `m`.
+    pub m: f64,
+    /// True when the factorisation came from the cache.
+    pub cached: bool,
+    /// Seconds spent factoring in this request (0 when cached).
+    pub factor_seconds: f64,
+}
+
+/// Runs the chosen method, using (and filling) the caller's heat cache.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_distance(
+    inputs: &dyn Inputs,
+    mesh_id: &str,
+    input: &MeshInput,
+    sources: &[SurfacePoint],
+    method: MeshMethod,
+    max_distance: f64,
+    weights: Option<&[f64]>,
+    heat: &HeatSpec,
+    control: &Control<'_>,
+) -> Result<(MeshDistance, Option<HeatInfo>), OpError> {
+    let opts = MeshDistanceOptions {
+        method,
+        max_distance,
+        weights,
+        heat: HeatOptions {
+            m: heat.m,
+            ..Default::default()
+        },
+    };
+    if method == MeshMethod::Heat {
+        let (solver, cached, secs) = heat_solver(inputs, mesh_id, input, heat, control)?;
+        let d = mesh_distance(
+            &input.mesh,
+            &input.topology,
+            sources,
+            &opts,
+            Some(&solver),
+            control,
+        )
+        .map_err(solve_error)?;
+        let info = HeatInfo {
+            t: solver.t(),
+            m: heat.m,
+            cached,
+            factor_seconds: secs,
+        };
+        return Ok((d, Some(info)));
+    }
+    let d = mesh_distance(&input.mesh, &input.topology, sources, &opts, None, control)
+        .map_err(solve_error)?;
+    Ok((d, None))
+}
+
+/// The (cached) heat solver of a mesh dataset.
+pub(crate) fn heat_solver(
+    inputs: &dyn Inputs,
+    mesh_id: &str,
+    input: &MeshInput,
+    heat: &HeatSpec,
+    control: &Control<'_>,
+) -> Result<(Arc<HeatSolver>, bool, f64), OpError> {
+    let started = std::time::Instant::now();
+    let mut build = || {
+        HeatSolver::new(
+            &input.mesh,
+            &input.topology,
+            &HeatOptions {
+                m: heat.m,
+                ..Default::default()
+            },
+            control,
+        )
+    };
+    let (solver, cached) = inputs
+        .heat_solver(mesh_id, heat.m, &mut build)
+        .map_err(solve_error)?;
+    let secs = if cached {
+        0.0
+    } else {
+        started.elapsed().as_secs_f64()
+    };
+    Ok((solver, cached, secs))
+}
+
+/// Summary of a per-vertex distance.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct MeshStats {
+    /// Number of vertices.
+    pub vertices: usize,
+    /// Vertices with a finite distance.
+    pub reached: usize,
+    /// Largest finite distance (`null` if none).
+    pub max_distance: Option<f64>,
+    /// Seconds spent in the solver.
+    pub solve_seconds: f64,
+}
+
+impl MeshStats {
+    pub(crate) fn of(d: &MeshDistance, seconds: f64) -> Self {
+        let finite = d.distance.iter().filter(|x| x.is_finite());
+        Self {
+            vertices: d.distance.len(),
+            reached: finite.clone().count(),
+            max_distance: finite.copied().reduce(f64::max),
+            solve_seconds: seconds,
+        }
+    }
+}
+
+/// Reads a per-vertex weight dataset (any shape with one value per vertex).
+pub(crate) fn read_weights(inputs: &dyn Inputs, id: &str, n: usize) -> Result<Vec<f64>, OpError> {
+    let w = inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
+        field: "weights".into(),
+        id: id.into(),
+    })?;
+    if w.array.len() != n {
+        return Err(OpError::invalid(
+            "weights",
+            format!("{} values for {n} vertices", w.array.len()),
+        ));
+    }
+    let v: Vec<f64> = (0..n)
+        .map(|i| w.array.get_f64(i).unwrap_or(f64::NAN))
+        .collect();
+    if let Some(i) = v.iter().position(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(OpError::invalid(
+            "weights",
+            format!("weight of vertex {i} is {} (must be finite and > 0)", v[i]),
+        ));
+    }
+    Ok(v)
+}

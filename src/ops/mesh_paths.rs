@@ -1,0 +1,175 @@
+//! `mesh.paths`: geodesic paths from target points to the nearest source,
+//! as 3D polylines with the vertex, edge or face of every point.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::mesh_common::{
+    check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
+};
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
+use crate::numerics::mesh::paths::{trace_path, PathLocation};
+use crate::numerics::Control;
+
+/// Request of `mesh.paths` (`POST /v1/mesh/paths`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "mesh": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44",
+    "sources": [{"vertex": 0}],
+    "targets": [{"vertex": 500}, {"face": 40, "bary": [0.3, 0.3, 0.4]}]
+}))]
+pub struct MeshPathsRequest {
+    /// Id of the mesh dataset.
+    pub mesh: String,
+    /// The sources.
+    #[schema(min_items = 1)]
+    pub sources: Vec<MeshPointSpec>,
+    /// The points to trace from; each path ends at its nearest source.
+    #[schema(min_items = 1)]
+    pub targets: Vec<MeshPointSpec>,
+    /// The method of the distance field that is descended. Default: `fast_marching`.
+    #[serde(default)]
+    pub method: MeshMethodSpec,
+    /// Heat method options.
+    #[serde(default)]
+    pub heat: HeatSpec,
+}
+
+/// One point of a path.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct PathPointOut {
+    /// Position `[x, y, z]`.
+    pub position: [f64; 3],
+    /// The vertex, when the point is one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vertex: Option<u32>,
+    /// The edge `[a, b]`, when the point lies on one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub edge: Option<[u32; 2]>,
+    /// The face, when the point lies inside one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub face: Option<u32>,
+}
+
+/// One path.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct PathOut {
+    /// Index of the target.
+    pub target: usize,
+    /// Index of the source reached (`null` if the descent stopped short).
+    pub source: Option<usize>,
+    /// Length of the polyline.
+    pub length: f64,
+    /// Distance of the target in the field that was descended.
+    pub distance: f64,
+    /// The polyline, from the target to the source.
+    pub points: Vec<PathPointOut>,
+}
+
+impl Operation for MeshPathsRequest {
+    const NAME: &'static str = "mesh.paths";
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        validate_common(&self.sources, None, &self.heat, limits)?;
+        if self.targets.is_empty() {
+            return Err(OpError::invalid("targets", "at least one target is needed"));
+        }
+        if self.targets.len() > limits.max_sources {
+            return Err(OpError::TooLarge {
+                field: "targets".into(),
+                reason: format!("more than {} targets", limits.max_sources),
+            });
+        }
+        for (i, t) in self.targets.iter().enumerate() {
+            t.to_point(&format!("targets[{i}]"))?;
+        }
+        Ok(())
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        vec![("mesh".to_string(), self.mesh.clone())]
+    }
+
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        self.validate(limits)?;
+        let sources = validate_common(&self.sources, None, &self.heat, limits)?;
+        let targets = self
+            .targets
+            .iter()
+            .enumerate()
+            .map(|(i, t)| t.to_point(&format!("targets[{i}]")))
+            .collect::<Result<Vec<_>, _>>()?;
+        let input = get_mesh(inputs, "mesh", &self.mesh)?;
+        check_points(&input.mesh, &sources, "sources")?;
+        check_points(&input.mesh, &targets, "targets")?;
+        let started = Instant::now();
+        let (d, heat) = run_distance(
+            inputs,
+            &self.mesh,
+            &input,
+            &sources,
+            self.method.into(),
+            f64::INFINITY,
+            None,
+            &self.heat,
+            control,
+        )?;
+        let mut paths = Vec::with_capacity(targets.len());
+        for (i, t) in targets.iter().enumerate() {
+            if control.is_cancelled() {
+                return Err(OpError::Cancelled);
+            }
+            let distance = match *t {
+                crate::numerics::mesh::SurfacePoint::Vertex(v) => d.distance[v as usize],
+                crate::numerics::mesh::SurfacePoint::Face { face, bary } => {
+                    let f = input.mesh.faces()[face as usize];
+                    (0..3).map(|k| bary[k] * d.distance[f[k] as usize]).sum()
+                }
+            };
+            let path = trace_path(&input.mesh, &input.topology, &d.distance, &sources, *t)
+                .map_err(|e| OpError::invalid(format!("targets[{i}]"), e.to_string()))?;
+            paths.push(PathOut {
+                target: i,
+                source: path.source,
+                length: path.length,
+                distance,
+                points: path
+                    .points
+                    .iter()
+                    .map(|p| {
+                        let mut o = PathPointOut {
+                            position: p.position,
+                            vertex: None,
+                            edge: None,
+                            face: None,
+                        };
+                        match p.location {
+                            PathLocation::Vertex(v) => o.vertex = Some(v),
+                            PathLocation::Edge(a, b, _) => o.edge = Some([a, b]),
+                            PathLocation::Face(f) => o.face = Some(f),
+                        }
+                        o
+                    })
+                    .collect(),
+            });
+        }
+        let document = serde_json::json!({
+            "method": self.method,
+            "heat": heat,
+            "solve_seconds": started.elapsed().as_secs_f64(),
+            "paths": paths,
+        });
+        Ok(OpOutput {
+            arrays: Vec::new(),
+            document,
+        })
+    }
+}

@@ -1,0 +1,126 @@
+//! `mesh.sample`: farthest-point sampling of a mesh and the Voronoi cells of
+//! the samples.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::mesh_common::{get_mesh, heat_solver, solve_error, HeatSpec, MeshMethodSpec, MeshStats};
+use super::mesh_distance::arrays;
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
+use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
+use crate::numerics::mesh::MeshMethod;
+use crate::numerics::Control;
+
+/// Request of `mesh.sample` (`POST /v1/mesh/sample`). Give `count`,
+/// `radius` or both (sampling stops at the first reached).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"mesh": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44", "count": 100}))]
+pub struct MeshSampleRequest {
+    /// Id of the mesh dataset.
+    pub mesh: String,
+    /// Number of samples.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub count: Option<usize>,
+    /// Stop once every vertex is within this distance of a sample.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
+    pub radius: Option<f64>,
+    /// The first sample (a vertex). Default: the vertex farthest from vertex 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first: Option<u32>,
+    /// The distance method. Default: `fast_marching`.
+    #[serde(default)]
+    pub method: MeshMethodSpec,
+    /// Heat method options.
+    #[serde(default)]
+    pub heat: HeatSpec,
+}
+
+impl Operation for MeshSampleRequest {
+    const NAME: &'static str = "mesh.sample";
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        match (self.count, self.radius) {
+            (None, None) => {
+                return Err(OpError::invalid("count", "give `count`, `radius` or both"))
+            }
+            (Some(0), _) => return Err(OpError::invalid("count", "must be >= 1")),
+            (Some(c), _) if c > limits.max_sources => {
+                return Err(OpError::TooLarge {
+                    field: "count".into(),
+                    reason: format!("more than {} samples", limits.max_sources),
+                })
+            }
+            _ => {}
+        }
+        if let Some(r) = self.radius {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(OpError::invalid("radius", "must be finite and > 0"));
+            }
+        }
+        if !(self.heat.m.is_finite() && self.heat.m > 0.0) {
+            return Err(OpError::invalid("heat.m", "must be finite and > 0"));
+        }
+        Ok(())
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        vec![("mesh".to_string(), self.mesh.clone())]
+    }
+
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        self.validate(limits)?;
+        let input = get_mesh(inputs, "mesh", &self.mesh)?;
+        if let Some(v) = self.first {
+            if v as usize >= input.mesh.num_vertices() {
+                return Err(OpError::invalid(
+                    "first",
+                    format!(
+                        "vertex {v} does not exist (the mesh has {} vertices)",
+                        input.mesh.num_vertices()
+                    ),
+                ));
+            }
+        }
+        let method: MeshMethod = self.method.into();
+        let heat = if method == MeshMethod::Heat {
+            Some(heat_solver(inputs, &self.mesh, &input, &self.heat, control)?.0)
+        } else {
+            None
+        };
+        let started = Instant::now();
+        let s = farthest_point_sampling(
+            &input.mesh,
+            &input.topology,
+            &SamplingOptions {
+                count: self.count,
+                radius: self.radius,
+                first: self.first,
+                method,
+            },
+            heat.as_deref(),
+            control,
+        )
+        .map_err(solve_error)?;
+        let stats = MeshStats::of(&s.field, started.elapsed().as_secs_f64());
+        let document = serde_json::json!({
+            "method": self.method,
+            "samples": s.samples,
+            "covering_radius": s.covering_radius,
+            "stats": stats,
+        });
+        Ok(OpOutput {
+            arrays: arrays(s.field),
+            document,
+        })
+    }
+}

@@ -1,0 +1,249 @@
+//! Mesh datasets and `/v1/mesh/*` over HTTP.
+
+use geodex::io::mesh::write::write_obj;
+use geodex::io::mesh::{ply::vertex_values, read_mesh, MeshFormat, MeshLimits};
+use geodex::numerics::mesh::shapes::{great_circle, icosphere};
+use serde_json::json;
+
+use crate::common::{problem, spawn, TestApp};
+
+async fn upload_mesh(
+    app: &TestApp,
+    body: Vec<u8>,
+    content_type: &str,
+    query: &str,
+) -> serde_json::Value {
+    let res = app
+        .client
+        .post(app.url(&format!("/v1/datasets{query}")))
+        .header("content-type", content_type)
+        .body(body)
+        .send()
+        .await
+        .expect("upload");
+    assert_eq!(res.status(), 201, "{:?}", res.text().await);
+    res.json().await.expect("json")
+}
+
+async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Response {
+    app.client
+        .post(app.url(path))
+        .json(&body)
+        .send()
+        .await
+        .expect("post")
+}
+
+#[tokio::test]
+async fn mesh_upload_distance_download() {
+    let app = spawn(|_| {}).await;
+    let sphere = icosphere(3, 1.0);
+    let meta = upload_mesh(&app, write_obj(&sphere), "model/obj", "").await;
+    assert_eq!(meta["kind"], "mesh");
+    assert_eq!(meta["source_format"], "obj");
+    assert_eq!(meta["mesh"]["vertices"], 642);
+    assert_eq!(meta["mesh"]["faces"], 1280);
+    assert_eq!(meta["mesh"]["components"], 1);
+    assert_eq!(meta["mesh"]["boundary_loops"], 0);
+    let id = meta["id"].as_str().unwrap().to_string();
+
+    // The same mesh via ?format= and via detection.
+    let m2 = upload_mesh(
+        &app,
+        write_obj(&sphere),
+        "application/octet-stream",
+        "?format=obj",
+    )
+    .await;
+    assert_eq!(m2["mesh"]["vertices"], 642);
+
+    for (method, tol) in [
+        ("fast_marching", 0.08),
+        ("fast-marching", 0.08),
+        ("heat", 0.08),
+        ("exact", 0.05),
+        ("dijkstra", 0.2),
+    ] {
+        let res = post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"vertex": 0}], "method": method}),
+        )
+        .await;
+        assert_eq!(res.status(), 200, "{method}: {:?}", res.text().await);
+        let body: serde_json::Value = res.json().await.unwrap();
+        assert_eq!(body["stats"]["reached"], 642);
+        let url = body["result"]["data_url"].as_str().unwrap().to_string();
+        let res = app.get(&url).await;
+        assert_eq!(res.status(), 200);
+        assert_eq!(res.headers()["content-type"], "model/ply");
+        let ply = res.bytes().await.unwrap();
+        let d = vertex_values(&ply).unwrap().distance.unwrap();
+        let back = read_mesh(&ply, Some(MeshFormat::Ply), &MeshLimits::default()).unwrap();
+        assert_eq!(back.mesh.num_vertices(), 642);
+        // Antipode of vertex 0 is at distance pi.
+        let p0 = sphere.position(0);
+        let far = (0..642)
+            .max_by(|&a, &b| {
+                great_circle(p0, sphere.position(a), 1.0).total_cmp(&great_circle(
+                    p0,
+                    sphere.position(b),
+                    1.0,
+                ))
+            })
+            .unwrap();
+        assert!(
+            (d[far as usize] - std::f64::consts::PI).abs() < tol * std::f64::consts::PI,
+            "{method}: {}",
+            d[far as usize]
+        );
+    }
+    // Heat: the second query reuses the factorisation.
+    let body: serde_json::Value = post(
+        &app,
+        "/v1/mesh/distance",
+        json!({"mesh": id, "sources": [{"vertex": 5}], "method": "heat"}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    assert_eq!(body["heat"]["cached"], true);
+    assert_eq!(body["heat"]["factor_seconds"], 0.0);
+
+    // JSON and OBJ downloads of a result.
+    let url = body["result"]["data_url"].as_str().unwrap().to_string();
+    let j: serde_json::Value = app
+        .get(&format!("{url}?format=json"))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(j["vertices"].as_array().unwrap().len(), 642);
+    assert_eq!(j["properties"]["distance"][5], 0.0);
+    let obj = app.get(&format!("{url}?format=obj")).await;
+    assert_eq!(obj.headers()["content-type"], "model/obj");
+
+    // Voronoi, paths, sampling.
+    let v: serde_json::Value = post(
+        &app,
+        "/v1/mesh/voronoi",
+        json!({"mesh": id, "sources": [{"vertex": 0}, {"face": 100, "bary": [0.2, 0.3, 0.5]}]}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    let cells = v["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 2);
+    let total: f64 = cells.iter().map(|c| c["area"].as_f64().unwrap()).sum();
+    assert!((total - 4.0 * std::f64::consts::PI).abs() < 0.1, "{total}");
+    let p: serde_json::Value = post(
+        &app,
+        "/v1/mesh/paths",
+        json!({"mesh": id, "sources": [{"vertex": 0}], "targets": [{"vertex": 300}]}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    let path = &p["paths"][0];
+    assert_eq!(path["source"], 0);
+    assert!(path["points"].as_array().unwrap().len() >= 2);
+    assert!(path["result"].is_null());
+    let s: serde_json::Value = post(&app, "/v1/mesh/sample", json!({"mesh": id, "count": 10}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(s["samples"].as_array().unwrap().len(), 10);
+}
+
+#[tokio::test]
+async fn mesh_errors_name_the_field() {
+    let app = spawn(|_| {}).await;
+    let sphere = icosphere(1, 1.0);
+    let meta = upload_mesh(&app, write_obj(&sphere), "model/obj", "").await;
+    let id = meta["id"].as_str().unwrap();
+    // Bad mesh files: one clear 422.
+    let res = app
+        .client
+        .post(app.url("/v1/datasets"))
+        .header("content-type", "model/obj")
+        .body("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n")
+        .send()
+        .await
+        .unwrap();
+    let p = problem(res, 422).await;
+    assert!(p["detail"].as_str().unwrap().contains("vertex 6"), "{p}");
+    let res = app
+        .client
+        .post(app.url("/v1/datasets"))
+        .header("content-type", "model/stl")
+        .body(vec![0u8; 90])
+        .send()
+        .await
+        .unwrap();
+    problem(res, 422).await;
+    // Sources out of range, bad bary, unknown dataset, array given as mesh.
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"vertex": 9999}]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("sources[0]"), "{p}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"face": 0, "bary": [0.5, 0.5, 0.5]}]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("sources[0]"), "{p}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"face": 0}]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("sources[0].bary"), "{p}");
+    problem(
+        post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": "ds_00000000000000000000000000000000", "sources": [{"vertex": 0}]}),
+        )
+        .await,
+        404,
+    )
+    .await;
+    let p = problem(
+        post(&app, "/v1/mesh/sample", json!({"mesh": id})).await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("count"), "{p}");
+    let res = app
+        .client
+        .post(app.url("/v1/mesh/distance"))
+        .json(&json!({"mesh": id, "sources": [{"vertex": 0}], "method": "nope"}))
+        .send()
+        .await
+        .unwrap();
+    assert!(res.status().is_client_error());
+    // A mesh has no NPY representation.
+    let res = app.get(&format!("/v1/datasets/{id}/data?format=npy")).await;
+    problem(res, 406).await;
+}
