@@ -26,6 +26,7 @@ use crate::io::mesh::{MeshFormat, MeshReport};
 use crate::io::{self, ArrayData, DType, Format, IoError, Limits};
 use crate::ops::InputArray;
 
+pub mod inputs;
 pub mod mesh;
 
 /// Whether a dataset is 2D or 3D.

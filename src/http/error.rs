@@ -284,6 +284,21 @@ pub fn io_error(e: IoError, field: &str) -> ApiError {
     }
 }
 
+impl From<crate::datasets::inputs::InputError> for ApiError {
+    fn from(e: crate::datasets::inputs::InputError) -> Self {
+        use crate::datasets::inputs::InputError;
+        match e {
+            InputError::NotFound { field, id } => OpError::UnknownDataset { field, id }.into(),
+            InputError::WrongKind {
+                field,
+                id,
+                expected,
+            } => OpError::invalid(field, format!("dataset '{id}' is not {expected}")).into(),
+            InputError::Store(e) => e.into(),
+        }
+    }
+}
+
 impl From<StoreError> for ApiError {
     fn from(e: StoreError) -> Self {
         match e {

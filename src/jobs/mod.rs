@@ -189,7 +189,9 @@ impl JobState {
     "time_limit_secs": 600
 }))]
 pub struct SubmitJob {
-    /// The operation (`grid.distance`, ...).
+    /// The operation: `grid.distance`, `grid.metric`, `grid.paths`, `grid.edt`, `grid.segment`,
+    /// `grid.skeleton`, `grid.offset`, `grid.plan`, `grid.tensor_distance`, `grid.tensor_metric`,
+    /// `mesh.distance`, `mesh.voronoi`, `mesh.paths` or `mesh.sample`.
     pub operation: String,
     /// The same body as the operation's synchronous endpoint.
     #[schema(value_type = Object)]

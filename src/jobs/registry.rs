@@ -45,6 +45,10 @@ pub const ENTRIES: &[Entry] = &[
     entry::<crate::ops::grid_plan::GridPlanRequest>(),
     entry::<crate::ops::grid_tensor_distance::GridTensorDistanceRequest>(),
     entry::<crate::ops::grid_tensor_metric::GridTensorMetricRequest>(),
+    entry::<crate::ops::mesh_distance::MeshDistanceRequest>(),
+    entry::<crate::ops::mesh_voronoi::MeshVoronoiRequest>(),
+    entry::<crate::ops::mesh_paths::MeshPathsRequest>(),
+    entry::<crate::ops::mesh_sample::MeshSampleRequest>(),
 ];
 
 /// The entry of an operation.
@@ -123,6 +127,31 @@ fn run<O: Operation>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_operation_is_registered_once() {
+        let mut names: Vec<&str> = ENTRIES.iter().map(|e| e.name).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), ENTRIES.len(), "duplicate operation names");
+        for name in [
+            "grid.paths",
+            "grid.edt",
+            "grid.tensor_distance",
+            "mesh.distance",
+            "mesh.sample",
+        ] {
+            assert!(find(name).is_some(), "{name} is not registered");
+        }
+        // A mesh request names its mesh under `params.mesh`, which is how the worker knows to load a mesh.
+        let e = find("mesh.distance").expect("registered");
+        let req = serde_json::json!({"mesh": "ds_m", "sources": [{"vertex": 0}]});
+        let p = (e.prepare)(&req, &OpLimits::default()).expect("valid");
+        assert_eq!(
+            p.datasets,
+            vec![("params.mesh".to_string(), "ds_m".to_string())]
+        );
+    }
 
     #[test]
     fn grid_distance_is_registered_and_validates() {

@@ -29,11 +29,11 @@ use super::{
     RunFlags, StoredOutput, METRIC_FAILURES, METRIC_JOBS, METRIC_QUEUE_WAIT, METRIC_RETRIES,
     METRIC_RUN,
 };
-use crate::datasets::StoreError;
+use crate::datasets::inputs::{InputError, StoreInputs};
 use crate::http::error::ApiError;
 use crate::io;
 use crate::numerics::Control;
-use crate::ops::{InputArray, OpError, OpOutput};
+use crate::ops::{OpError, OpOutput};
 use crate::pool::PoolError;
 
 /// Handles of the background tasks of [`Jobs::start`].
@@ -332,24 +332,17 @@ impl Jobs {
         &self,
         row: &JobRow,
         entry: &registry::Entry,
-    ) -> Result<BTreeMap<String, InputArray>, ApiError> {
+    ) -> Result<StoreInputs, ApiError> {
         let value: Value = serde_json::from_str(&row.params).map_err(ApiError::internal)?;
         let prepared = (entry.prepare)(&value, &self.limits)?;
-        let mut inputs = BTreeMap::new();
-        for (field, id) in prepared.datasets {
-            match self.datasets.load(&id).await {
-                Ok(input) => {
-                    inputs.insert(id, input);
-                }
-                Err(StoreError::NotFound(_)) => {
-                    return Err(ApiError::not_found(
-                        Some(&field),
-                        format!("{field}: dataset '{id}' does not exist (or has expired)"),
-                    ))
-                }
-                Err(e) => return Err(e.into()),
-            }
-        }
+        let mut inputs = StoreInputs::new(Arc::clone(&self.datasets));
+        inputs.load(prepared.datasets).await.map_err(|e| match e {
+            InputError::NotFound { field, id } => ApiError::not_found(
+                Some(&field),
+                format!("{field}: dataset '{id}' does not exist (or has expired)"),
+            ),
+            other => other.into(),
+        })?;
         Ok(inputs)
     }
 
@@ -368,7 +361,6 @@ impl Jobs {
             Err(e) if e.status().is_server_error() => return Outcome::Retry(e),
             Err(e) => return Outcome::Failed(e, "invalid"),
         };
-        let inputs: std::collections::HashMap<String, InputArray> = inputs.into_iter().collect();
         let params = row.params.clone();
         let limits = self.limits;
         let run = entry.run;

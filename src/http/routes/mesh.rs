@@ -3,55 +3,25 @@
 //! on the solver pool with the store's heat-factorisation cache, and store
 //! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
 
-use std::collections::HashMap;
-use std::sync::Arc;
-
 use axum::extract::State;
 use axum::Json;
 use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use crate::datasets::{DatasetStore, SourceFormat, StoreError};
+use crate::datasets::inputs::StoreInputs;
+use crate::datasets::SourceFormat;
 use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
 use crate::io::mesh::write::VertexProperty;
 use crate::io::ArrayData;
-use crate::numerics::mesh::{HeatSolver, MeshSolveError};
-use crate::ops::mesh_common::MeshInput;
 use crate::ops::mesh_distance::MeshDistanceRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
 use crate::ops::mesh_sample::MeshSampleRequest;
 use crate::ops::mesh_voronoi::MeshVoronoiRequest;
-use crate::ops::{InputArray, Inputs, OpError, Operation};
-
-/// Inputs of a mesh operation: meshes, arrays and the store's heat cache.
-struct MeshInputs {
-    arrays: HashMap<String, InputArray>,
-    meshes: HashMap<String, Arc<MeshInput>>,
-    store: Arc<DatasetStore>,
-}
-
-impl Inputs for MeshInputs {
-    fn get(&self, id: &str) -> Option<InputArray> {
-        self.arrays.get(id).cloned()
-    }
-
-    fn mesh(&self, id: &str) -> Option<Arc<MeshInput>> {
-        self.meshes.get(id).cloned()
-    }
-
-    fn heat_solver(
-        &self,
-        id: &str,
-        m: f64,
-        build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
-    ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
-        self.store.heat_solver(id, m, build)
-    }
-}
+use crate::ops::Operation;
 
 /// The answer of a mesh operation.
 #[derive(Debug, Serialize, ToSchema)]
@@ -72,49 +42,13 @@ async fn run_mesh_op<O: Operation>(
     request: O,
 ) -> Result<Json<MeshResponse>, ApiError> {
     request.validate(&state.op_limits)?;
-    let mut inputs = MeshInputs {
-        arrays: HashMap::new(),
-        meshes: HashMap::new(),
-        store: state.store.clone(),
-    };
-    let mut mesh_id = None;
-    for (field, id) in request.dataset_ids() {
-        let not_found = || -> ApiError {
-            OpError::UnknownDataset {
-                field: field.clone(),
-                id: id.clone(),
-            }
-            .into()
-        };
-        if field == "mesh" {
-            match state.store.load_mesh(&id).await {
-                Ok(m) => {
-                    inputs.meshes.insert(id.clone(), m);
-                    mesh_id = Some(id.clone());
-                }
-                Err(StoreError::NotFound(_)) => return Err(not_found()),
-                Err(StoreError::Codec(_)) => {
-                    return Err(
-                        OpError::invalid(field, format!("dataset '{id}' is not a mesh")).into(),
-                    )
-                }
-                Err(e) => return Err(e.into()),
-            }
-        } else {
-            match state.store.load(&id).await {
-                Ok(a) => {
-                    inputs.arrays.insert(id.clone(), a);
-                }
-                Err(StoreError::NotFound(_)) => return Err(not_found()),
-                Err(StoreError::Codec(_)) => {
-                    return Err(
-                        OpError::invalid(field, format!("dataset '{id}' is not an array")).into(),
-                    )
-                }
-                Err(e) => return Err(e.into()),
-            }
-        }
-    }
+    let ids = request.dataset_ids();
+    let mesh_id = ids
+        .iter()
+        .find(|(field, _)| field == "mesh")
+        .map(|(_, id)| id.clone());
+    let mut inputs = StoreInputs::new(state.store.clone());
+    inputs.load(ids).await?;
     let limits = state.op_limits;
     let mesh = mesh_id.and_then(|id| inputs.meshes.get(&id).cloned());
     let (result, _timing) = state
