@@ -212,10 +212,9 @@ pub struct ExactStats {
 ///     vec![[0, 1, 2], [0, 2, 3]],
 /// )?;
 /// let t = Topology::new(&m);
-/// let d = exact_distance(&m, &t, &[SurfacePoint::Vertex(1)], f64::INFINITY, &Control::new())
-///     .unwrap();
+/// let d = exact_distance(&m, &t, &[SurfacePoint::Vertex(1)], f64::INFINITY, &Control::new())?;
 /// assert!((d.distance[3] - 2f64.sqrt()).abs() < 1e-12);
-/// # Ok::<(), geodex::numerics::mesh::MeshError>(())
+/// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn exact_distance(
     mesh: &TriMesh,
