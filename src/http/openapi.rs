@@ -245,7 +245,51 @@ impl utoipa::ToSchema for FileBytes {}
 
 /// The whole OpenAPI document (paths from the router, plus [`ApiDoc`]).
 pub fn document() -> utoipa::openapi::OpenApi {
-    super::api_router().into_openapi()
+    allow_variant_tags(super::api_router().into_openapi())
+}
+
+/// Makes internally tagged enums satisfiable in the document.
+///
+/// utoipa describes a variant of `#[serde(tag = "kind")]` as
+/// `allOf: [{$ref: Variant}, {properties: {kind: ...}}]`, while `Variant`
+/// (a `deny_unknown_fields` struct) says `additionalProperties: false`: no
+/// object satisfies both, so clients and fuzzers cannot build one. serde
+/// itself removes the tag before the variant sees the object, so the fix is in
+/// the document only: the tag property is also listed in the variant's own
+/// schema.
+pub fn allow_variant_tags(mut doc: utoipa::openapi::OpenApi) -> utoipa::openapi::OpenApi {
+    use utoipa::openapi::schema::Schema;
+    use utoipa::openapi::RefOr;
+    let Some(components) = doc.components.as_mut() else {
+        return doc;
+    };
+    let mut tags: Vec<(String, String, RefOr<Schema>)> = Vec::new();
+    for schema in components.schemas.values() {
+        let RefOr::T(Schema::OneOf(one_of)) = schema else {
+            continue;
+        };
+        for variant in &one_of.items {
+            let RefOr::T(Schema::AllOf(all_of)) = variant else {
+                continue;
+            };
+            let [RefOr::Ref(target), RefOr::T(Schema::Object(tag))] = all_of.items.as_slice()
+            else {
+                continue;
+            };
+            let Some(target) = target.ref_location.strip_prefix("#/components/schemas/") else {
+                continue;
+            };
+            for (name, prop) in &tag.properties {
+                tags.push((target.to_string(), name.clone(), prop.clone()));
+            }
+        }
+    }
+    for (target, name, prop) in tags {
+        if let Some(RefOr::T(Schema::Object(object))) = components.schemas.get_mut(&target) {
+            object.properties.entry(name).or_insert(prop);
+        }
+    }
+    doc
 }
 
 /// The document as pretty JSON with a trailing newline (what `api/openapi.json` holds).
@@ -255,4 +299,28 @@ pub fn document_json() -> String {
         .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     s.push('\n');
     s
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn tagged_variants_accept_their_tag() {
+        let doc = serde_json::to_value(super::document()).expect("json");
+        for (schema, tag) in [
+            ("IntensitySpec", "kind"),
+            ("VesselnessSpec", "kind"),
+            ("ConstantTensor", "kind"),
+        ] {
+            let s = &doc["components"]["schemas"][schema];
+            assert_eq!(
+                s["additionalProperties"],
+                serde_json::json!(false),
+                "{schema}"
+            );
+            assert!(
+                s["properties"][tag].is_object(),
+                "{schema} must list `{tag}` or no object satisfies its variant"
+            );
+        }
+    }
 }
