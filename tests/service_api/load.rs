@@ -120,8 +120,10 @@ async fn a_solve_past_its_deadline_is_cancelled_and_the_pool_recovers() {
     assert_eq!(last, 200, "the pool serves the next request");
 }
 
-/// A client that gives up (disconnects) cancels its solve: the single pool
-/// slot becomes free again although the solve alone would take far longer.
+/// A client that gives up (disconnects) cancels its solve: the solve stops
+/// long before it would have finished (its recorded run time, outcome
+/// `cancelled`, is a fraction of the same solve run to completion), and the
+/// single pool slot becomes free again.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_disconnected_client_cancels_its_solve() {
     let app = spawn(|s| {
@@ -129,10 +131,24 @@ async fn a_disconnected_client_cancels_its_solve() {
         s.queue_capacity = Some(1);
     })
     .await;
-    let big = json!({"cost": {"constant": 1.0, "shape": [3000, 3000]},
-        "sources": [{"point": [1500.0, 1500.0]}]});
+    let big = json!({"cost": {"constant": 1.0, "shape": [2000, 2000]},
+        "sources": [{"point": [1500.0, 1500.0]}], "outputs": {"labels": false}});
+    // The same solve, run to completion: how long it takes on this machine.
+    let res = app
+        .client
+        .post(app.url("/v1/grid/distance"))
+        .json(&big)
+        .send()
+        .await
+        .expect("post");
+    assert_eq!(res.status(), 200);
+    let full: serde_json::Value = res.json().await.expect("json");
+    let full_seconds = full["stats"]["solve_seconds"]
+        .as_f64()
+        .expect("solve_seconds");
+
     let impatient = reqwest::Client::builder()
-        .timeout(Duration::from_millis(200))
+        .timeout(Duration::from_millis(100))
         .build()
         .expect("client");
     let err = impatient
@@ -143,6 +159,32 @@ async fn a_disconnected_client_cancels_its_solve() {
     assert!(err.is_err(), "the client timed out");
     let last = status_once_a_slot_is_free(&app).await;
     assert_eq!(last, 200, "the slot was freed by the disconnect");
+
+    // The pool recorded the abandoned solve as cancelled, with a run time
+    // well below the full solve's: it stopped, it did not run to the end.
+    let metrics = app
+        .client
+        .get(app.url("/metrics"))
+        .send()
+        .await
+        .expect("metrics")
+        .text()
+        .await
+        .expect("text");
+    let cancelled = metrics
+        .lines()
+        .find(|l| {
+            l.starts_with("geodex_solve_seconds_sum{")
+                && l.contains("operation=\"grid.distance\"")
+                && l.contains("outcome=\"cancelled\"")
+        })
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse::<f64>().ok())
+        .expect("a cancelled grid.distance solve in /metrics");
+    assert!(
+        cancelled < 0.5 * full_seconds,
+        "the cancelled solve ran {cancelled} s, the full one {full_seconds} s"
+    );
 }
 
 /// Posts a tiny solve every 20 ms (at most 500 times) until the pool stops
