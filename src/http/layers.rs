@@ -12,7 +12,8 @@ use axum::middleware::{self, Next};
 use axum::response::Response;
 use axum::Router;
 use tower_http::catch_panic::CatchPanicLayer;
-use tower_http::compression::CompressionLayer;
+use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
+use tower_http::compression::{CompressionLayer, CompressionLevel};
 use tower_http::cors::{AllowOrigin, Any, CorsLayer};
 use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::trace::{DefaultOnResponse, TraceLayer};
@@ -74,6 +75,21 @@ fn cors(origins: &[String]) -> Option<CorsLayer> {
     )
 }
 
+/// gzip for clients that ask for it, at the fastest level: an interactive
+/// path answer (~200 KB of JSON) takes ~30 ms to compress at zlib's default
+/// level 6 and ~5 ms at level 1 for nearly the same size (109 KB vs 103 KB),
+/// and the front end is waiting. NPY arrays (binary floats, megabytes, little
+/// to gain) are never compressed; neither are the images and streams that
+/// tower-http's default predicate already skips.
+fn compression() -> CompressionLayer<impl Predicate> {
+    CompressionLayer::new()
+        .gzip(true)
+        .quality(CompressionLevel::Fastest)
+        .compress_when(
+            DefaultPredicate::new().and(NotForContentType::const_new("application/x-npy")),
+        )
+}
+
 /// Wraps the router in every layer.
 pub fn apply(app: Router, settings: &ServeArgs) -> Router {
     let x_request_id = HeaderName::from_static("x-request-id");
@@ -82,7 +98,7 @@ pub fn apply(app: Router, settings: &ServeArgs) -> Router {
             settings.max_body_bytes,
         ))
         .layer(CatchPanicLayer::custom(error::panic_response))
-        .layer(CompressionLayer::new().gzip(true))
+        .layer(compression())
         .layer(middleware::from_fn(error::finalize))
         .layer(middleware::from_fn(track));
     let app = match cors(&settings.cors_origins) {

@@ -294,6 +294,18 @@ async fn quota_expiry_and_representations() {
         .await
         .expect("get");
     assert_eq!(res.headers()["content-encoding"], "gzip");
+    // NPY arrays are not (binary floats: megabytes for little gain).
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/datasets/{id}/data")))
+        .header("accept", "application/x-npy")
+        .header("accept-encoding", "gzip")
+        .send()
+        .await
+        .expect("get");
+    assert_eq!(res.status(), 200);
+    assert_eq!(res.headers()["content-type"], "application/x-npy");
+    assert!(res.headers().get("content-encoding").is_none());
 
     // After its lifetime the dataset is gone.
     tokio::time::sleep(std::time::Duration::from_millis(1100)).await;
