@@ -100,9 +100,9 @@ pub async fn paths(
     let mut inputs: HashMap<String, InputArray> = HashMap::new();
     if cost.is_none() || format == PathFormat::Svg {
         for (field, id) in request.dataset_ids() {
-            match state.store.load(id).await {
+            match state.store.load(&id).await {
                 Ok(input) => {
-                    inputs.insert(id.to_string(), input);
+                    inputs.insert(id, input);
                 }
                 Err(StoreError::NotFound(_)) => {
                     return Err(OpError::UnknownDataset {
