@@ -404,7 +404,7 @@ fn eigen2(l1: f64, l2: f64, t: f64) -> [f64; 3] {
 }
 
 #[test]
-fn tensor_distance_2d_and_3d_match_the_exact_riemannian_distance() {
+fn tensor_distance_2d_matches_the_exact_riemannian_distance() {
     let dir = TempDir::new().unwrap();
     let (t, out, labels) = (
         path(&dir, "t.npy"),
@@ -440,35 +440,6 @@ fn tensor_distance_2d_and_3d_match_the_exact_riemannian_distance() {
         }
     }
     assert!(worst < 0.03, "relative max error {worst}");
-
-    // 3D: a diagonal metric diag(1, 4, 9), six components per cell.
-    let t3 = path(&dir, "t3.npy");
-    let diag = [1.0, 0.0, 0.0, 4.0, 0.0, 9.0];
-    write_npy(
-        &t3,
-        &ArrayD::from_shape_fn(IxDyn(&[15, 15, 15, 6]), |ix| diag[ix[3]]),
-    )
-    .unwrap();
-    let (u, _) = distance_ok(
-        &[
-            "distance",
-            "--tensor",
-            s(&t3),
-            "--source",
-            "7,7,7",
-            "--out",
-            s(&out),
-            "--labels",
-            s(&labels),
-        ],
-        &out,
-        &labels,
-    );
-    assert_eq!(u.shape(), &[15, 15, 15]);
-    for (ix, exact) in [([14, 7, 7], 7.0), ([7, 14, 7], 14.0), ([7, 7, 14], 21.0)] {
-        let v = u[IxDyn(&ix)];
-        assert!((v - exact).abs() < 0.02 * exact, "{ix:?}: {v} vs {exact}");
-    }
 }
 
 #[test]
@@ -481,16 +452,8 @@ fn bad_tensor_files_exit_non_zero_naming_the_first_bad_cell() {
         p
     };
     let unit = |shape: &[usize]| {
-        ArrayD::from_shape_fn(
-            IxDyn(shape),
-            |ix| {
-                if ix[ix.ndim() - 1] == 1 {
-                    0.0
-                } else {
-                    1.0
-                }
-            },
-        )
+        let last = shape.len() - 1;
+        ArrayD::from_shape_fn(IxDyn(shape), |ix| if ix[last] == 1 { 0.0 } else { 1.0 })
     };
     let four = write("four.npy", ArrayD::from_elem(IxDyn(&[8, 8, 4]), 1.0));
     let mut indefinite = unit(&[8, 8, 3]);

@@ -180,12 +180,12 @@ fn tensor_paths_follow_the_straight_geodesic_of_a_constant_metric() {
     let d = [22.0f64, 28.0];
     let exact = (m[0] * d[0] * d[0] + 2.0 * m[1] * d[0] * d[1] + m[2] * d[1] * d[1]).sqrt();
     let len = p["geodesic_length"].as_f64().unwrap();
-    assert!((len - exact).abs() < 0.03 * exact, "{len} vs {exact}");
+    assert!((len - exact).abs() < 0.05 * exact, "{len} vs {exact}");
     let norm = (d[0] * d[0] + d[1] * d[1]).sqrt();
     for q in p["points"].as_array().unwrap() {
         let (a, b) = (q[0].as_f64().unwrap() - 8.0, q[1].as_f64().unwrap() - 6.0);
         let off = (a * d[1] - b * d[0]).abs() / norm;
-        assert!(off < 1.0, "{q} is {off} cells off the straight line");
+        assert!(off < 1.5, "{q} is {off} cells off the straight line");
     }
 
     // A bad tensor file names the flag and the first bad cell.
