@@ -105,11 +105,7 @@ pub async fn paths(
                     inputs.insert(id, input);
                 }
                 Err(StoreError::NotFound(_)) => {
-                    return Err(OpError::UnknownDataset {
-                        field: field.into(),
-                        id: id.into(),
-                    }
-                    .into())
+                    return Err(OpError::UnknownDataset { field, id }.into())
                 }
                 Err(e) => return Err(e.into()),
             }
