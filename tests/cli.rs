@@ -392,3 +392,113 @@ fn bad_inputs_exit_non_zero_with_one_line_naming_the_problem() {
     ]);
     assert!(line.starts_with("geodex: --out: cannot write"), "{line}");
 }
+
+/// `[m11, m12, m22]` of eigenvalues `l1` along `(cos t, sin t)` (axis 0 first) and `l2` across.
+fn eigen2(l1: f64, l2: f64, t: f64) -> [f64; 3] {
+    let (c, s) = (t.cos(), t.sin());
+    [
+        l1 * c * c + l2 * s * s,
+        (l1 - l2) * c * s,
+        l1 * s * s + l2 * c * c,
+    ]
+}
+
+#[test]
+fn tensor_distance_2d_matches_the_exact_riemannian_distance() {
+    let dir = TempDir::new().unwrap();
+    let (t, out, labels) = (
+        path(&dir, "t.npy"),
+        path(&dir, "u.npy"),
+        path(&dir, "l.npy"),
+    );
+    let m = eigen2(1.0, 16.0, 0.5);
+    let field = ArrayD::from_shape_fn(IxDyn(&[41, 41, 3]), |ix| m[ix[2]]);
+    write_npy(&t, &field).unwrap();
+    let (u, l) = distance_ok(
+        &[
+            "distance",
+            "--tensor",
+            s(&t),
+            "--source",
+            "20,20",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    assert_eq!(u.shape(), &[41, 41]);
+    assert!(l.iter().all(|&v| v == 0));
+    let mut worst: f64 = 0.0;
+    for ((i, j), v) in u.indexed_iter().map(|(ix, v)| ((ix[0], ix[1]), *v)) {
+        let (a, b) = (i as f64 - 20.0, j as f64 - 20.0);
+        let exact = (m[0] * a * a + 2.0 * m[1] * a * b + m[2] * b * b).sqrt();
+        if exact >= 5.0 {
+            worst = worst.max((v - exact).abs() / exact);
+        }
+    }
+    assert!(worst < 0.03, "relative max error {worst}");
+}
+
+#[test]
+fn bad_tensor_files_exit_non_zero_naming_the_first_bad_cell() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    let write = |name: &str, a: ArrayD<f64>| {
+        let p = path(&dir, name);
+        write_npy(&p, &a).unwrap();
+        p
+    };
+    let unit = |shape: &[usize]| {
+        let last = shape.len() - 1;
+        ArrayD::from_shape_fn(IxDyn(shape), |ix| if ix[last] == 1 { 0.0 } else { 1.0 })
+    };
+    let four = write("four.npy", ArrayD::from_elem(IxDyn(&[8, 8, 4]), 1.0));
+    let mut indefinite = unit(&[8, 8, 3]);
+    indefinite[[2, 3, 1]] = 2.0;
+    indefinite[[6, 6, 1]] = 2.0;
+    let indefinite = write("indef.npy", indefinite);
+    let mut nan = unit(&[8, 8, 3]);
+    nan[[4, 1, 2]] = f64::NAN;
+    let nan = write("nan.npy", nan);
+    let good = write("good.npy", unit(&[8, 8, 3]));
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        (
+            vec!["--tensor", s(&four), "--source", "1,1"],
+            &["--tensor", "trailing axis of 3"],
+        ),
+        (
+            vec!["--tensor", s(&indefinite), "--source", "1,1"],
+            &["--tensor", "cell [2, 3]", "positive definite"],
+        ),
+        (
+            vec!["--tensor", s(&nan), "--source", "1,1"],
+            &["--tensor", "cell [4, 1]", "not finite"],
+        ),
+        (
+            vec![
+                "--tensor",
+                s(&good),
+                "--source",
+                "1,1",
+                "--method",
+                "dijkstra",
+            ],
+            &["--method"],
+        ),
+        (
+            vec!["--tensor", s(&good), "--source", "9,1"],
+            &["--source 1"],
+        ),
+    ];
+    for (extra, wanted) in cases {
+        let mut args = vec!["distance", "--out", s(&out)];
+        args.extend(extra.iter().copied());
+        let line = one_error_line(&args);
+        for w in wanted {
+            assert!(line.contains(w), "{args:?}: {line:?} lacks {w:?}");
+        }
+    }
+}

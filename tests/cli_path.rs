@@ -150,3 +150,79 @@ fn bad_flags_name_themselves() {
     ]);
     assert!(e.starts_with("geodex: --to 1: "), "{e}");
 }
+
+#[test]
+fn tensor_paths_follow_the_straight_geodesic_of_a_constant_metric() {
+    let dir = TempDir::new().unwrap();
+    // Cheap along axis 1 (1), expensive along axis 0 (25), with a shear.
+    let m = [20.0, -6.0, 4.0];
+    let t = dir.path().join("t.npy");
+    write_npy(
+        &t,
+        &ArrayD::from_shape_fn(IxDyn(&[41, 41, 3]), |ix| m[ix[2]]),
+    )
+    .unwrap();
+    let out = dir.path().join("paths.json");
+    let o = geodex(&[
+        "path",
+        "--tensor",
+        s(&t),
+        "--source",
+        "8,6",
+        "--to",
+        "30,34",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let p = &v["paths"][0];
+    let d = [22.0f64, 28.0];
+    let exact = (m[0] * d[0] * d[0] + 2.0 * m[1] * d[0] * d[1] + m[2] * d[1] * d[1]).sqrt();
+    let len = p["geodesic_length"].as_f64().unwrap();
+    assert!((len - exact).abs() < 0.05 * exact, "{len} vs {exact}");
+    let norm = (d[0] * d[0] + d[1] * d[1]).sqrt();
+    for q in p["points"].as_array().unwrap() {
+        let (a, b) = (q[0].as_f64().unwrap() - 8.0, q[1].as_f64().unwrap() - 6.0);
+        let off = (a * d[1] - b * d[0]).abs() / norm;
+        assert!(off < 1.5, "{q} is {off} cells off the straight line");
+    }
+
+    // A bad tensor file names the flag and the first bad cell.
+    let mut bad = ArrayD::from_shape_fn(IxDyn(&[8, 8, 3]), |ix| m[ix[2]]);
+    bad[[5, 2, 0]] = -1.0;
+    let badf = dir.path().join("bad.npy");
+    write_npy(&badf, &bad).unwrap();
+    let line = one_error_line(&[
+        "path",
+        "--tensor",
+        s(&badf),
+        "--source",
+        "1,1",
+        "--to",
+        "6,6",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        line.contains("--tensor") && line.contains("cell [5, 2]"),
+        "{line}"
+    );
+    let line = one_error_line(&[
+        "path",
+        "--tensor",
+        s(&t),
+        "--design",
+        r#"{"kind": "edges"}"#,
+        "--source",
+        "1,1",
+        "--to",
+        "6,6",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        line.contains("--design") || line.contains("--tensor"),
+        "{line}"
+    );
+}

@@ -99,7 +99,8 @@ fn three_discs_are_segmented_with_dice_at_least_98_percent() {
         ("s".to_string(), input(ArrayData::U8(arr2(n, n, scribble)))),
     ]);
     let request = GridSegmentRequest {
-        cost: CostSpec {
+        metric: None,
+        cost: Some(CostSpec {
             dataset: Some("w".into()),
             constant: None,
             shape: None,
@@ -110,7 +111,7 @@ fn three_discs_are_segmented_with_dice_at_least_98_percent() {
                 }))
                 .unwrap(),
             ),
-        },
+        }),
         spacing: None,
         obstacles: None,
         seeds: discs
@@ -180,13 +181,14 @@ fn three_discs_are_segmented_with_dice_at_least_98_percent() {
 fn geodesic_ball_and_seed_errors() {
     let inputs: HashMap<String, InputArray> = HashMap::new();
     let mut request = GridSegmentRequest {
-        cost: CostSpec {
+        metric: None,
+        cost: Some(CostSpec {
             dataset: None,
             constant: Some(1.0),
             shape: Some(vec![41, 41]),
             interpretation: InterpretationSpec::Cost,
             design: None,
-        },
+        }),
         spacing: None,
         obstacles: None,
         seeds: vec![SeedSpec {

@@ -9,7 +9,14 @@
 //! ```text
 //! geodex distance --cost W.npy --source 10,20 --source 200,31.5 --out U.npy --labels L.npy
 //! geodex distance --shape 128,128,128 --source 64,64,64 --spacing 1,1,2 --out U.npy
+//! geodex distance --tensor T.npy --source 10,20 --out U.npy
 //! ```
+//!
+//! `--tensor T.npy` gives a Riemannian metric instead of a cost: shape
+//! `(n0, n1, 3)` holding `m11, m12, m22` per cell (2D), or `(n0, n1, n2, 6)`
+//! holding `m11, m12, m13, m22, m23, m33` (3D), axis 0 first; it is solved
+//! by the anisotropic fast marching. A cell that is not finite or not
+//! positive definite is refused, naming the first such cell.
 //!
 //! Errors are one line on stderr naming the flag at fault, e.g.
 //! `geodex: --source 2: point [300.0, 4.0] is outside the grid of shape [256, 256] ...`,
@@ -28,16 +35,22 @@ use crate::ops::grid_distance::{
     self, ConnectivitySpec, CostSpec, GridDistanceRequest, InterpretationSpec, MethodSpec,
     OutputSpec, SourceSpec, StopSpec,
 };
+use crate::ops::tensor_spec::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpError, OpLimits};
 
 /// Flags of `geodex distance`.
 #[derive(Debug, Clone, Args)]
-#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape"])))]
+#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape", "tensor"])))]
 pub struct DistanceArgs {
     /// Cost per unit length W (or a speed with --speed): a 2D or 3D array,
     /// f32 or f64 (NPY, or any format geodex reads). +inf marks a wall.
     #[arg(long, value_name = "COST.npy")]
     pub cost: Option<PathBuf>,
+    /// A Riemannian metric instead of a cost: an array of shape (N, M, 3)
+    /// holding m11, m12, m22 per cell (2D) or (N, M, P, 6) holding m11, m12,
+    /// m13, m22, m23, m33 (3D); every cell symmetric positive definite.
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["speed", "method", "connectivity"])]
+    pub tensor: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
     pub shape: Option<Vec<usize>>,
@@ -140,46 +153,19 @@ pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> Distan
 pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
     let sources = parse_points("--source", &args.sources)?;
     let targets = parse_points("--target", &args.targets)?;
-    let cost_flag = if args.cost.is_some() {
-        "--cost"
-    } else {
-        "--shape"
+    let metric = MetricFlags {
+        cost: args.cost.as_deref(),
+        shape: args.shape.as_deref(),
+        tensor: args.tensor.as_deref(),
+        obstacles: args.obstacles.as_deref(),
+        speed: args.speed,
     };
-
-    let mut inputs: HashMap<String, InputArray> = HashMap::new();
-    if let Some(path) = &args.cost {
-        let decoded = read_array("--cost", path)?;
-        inputs.insert(
-            "cost".into(),
-            InputArray {
-                array: Arc::new(decoded.array),
-                spacing: decoded.spacing,
-            },
-        );
-    }
-    if let Some(path) = &args.obstacles {
-        let decoded = read_array("--obstacles", path)?;
-        inputs.insert(
-            "obstacles".into(),
-            InputArray {
-                array: Arc::new(decoded.array),
-                spacing: None,
-            },
-        );
-    }
+    let (inputs, cost, tensor) = metric.load(None)?;
+    let cost_flag = metric.flag();
 
     let request = GridDistanceRequest {
-        cost: CostSpec {
-            dataset: args.cost.as_ref().map(|_| "cost".to_string()),
-            constant: args.shape.as_ref().map(|_| 1.0),
-            shape: args.shape.clone(),
-            interpretation: if args.speed {
-                InterpretationSpec::Speed
-            } else {
-                InterpretationSpec::Cost
-            },
-            design: None,
-        },
+        cost,
+        metric: tensor,
         spacing: args.spacing.clone(),
         obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
         sources: sources
@@ -233,6 +219,81 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
         s.solve_seconds
     );
     Ok(())
+}
+
+/// The metric flags shared by `geodex distance` and `geodex path`:
+/// `--cost` (or `--shape`) or `--tensor`, `--obstacles`, `--speed`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MetricFlags<'a> {
+    pub cost: Option<&'a Path>,
+    pub shape: Option<&'a [usize]>,
+    pub tensor: Option<&'a Path>,
+    pub obstacles: Option<&'a Path>,
+    pub speed: bool,
+}
+
+/// The input arrays of a grid command, keyed by the dataset ids its request names.
+pub(crate) type CliInputs = HashMap<String, InputArray>;
+
+impl MetricFlags<'_> {
+    /// The flag that gives the metric (errors on `cost.*` / `metric.*` name it).
+    pub(crate) fn flag(&self) -> &'static str {
+        if self.tensor.is_some() {
+            "--tensor"
+        } else if self.cost.is_some() {
+            "--cost"
+        } else {
+            "--shape"
+        }
+    }
+
+    /// Reads the files (`cost`, `tensor`, `obstacles` datasets; a cost or
+    /// tensor file keeps its stored spacing) and builds the `cost` or
+    /// `metric` section of the request (`design` goes with `--cost`).
+    pub(crate) fn load(
+        &self,
+        design: Option<crate::ops::grid_metric::DesignSpec>,
+    ) -> Result<(CliInputs, Option<CostSpec>, Option<TensorSpec>), DistanceError> {
+        let mut inputs = CliInputs::new();
+        let mut put = |name: &str, id: &str, path: &Path, keep_spacing: bool| {
+            let decoded = read_array(name, path)?;
+            inputs.insert(
+                id.into(),
+                InputArray {
+                    array: Arc::new(decoded.array),
+                    spacing: decoded.spacing.filter(|_| keep_spacing),
+                },
+            );
+            Ok::<(), DistanceError>(())
+        };
+        if let Some(path) = self.cost {
+            put("--cost", "cost", path, true)?;
+        }
+        if let Some(path) = self.tensor {
+            put("--tensor", "tensor", path, true)?;
+        }
+        if let Some(path) = self.obstacles {
+            put("--obstacles", "obstacles", path, false)?;
+        }
+        if self.tensor.is_some() {
+            let metric = TensorSpec::Components(ComponentsTensor {
+                dataset: "tensor".into(),
+            });
+            return Ok((inputs, None, Some(metric)));
+        }
+        let cost = CostSpec {
+            dataset: self.cost.map(|_| "cost".to_string()),
+            constant: self.shape.map(|_| 1.0),
+            shape: self.shape.map(<[usize]>::to_vec),
+            interpretation: if self.speed {
+                InterpretationSpec::Speed
+            } else {
+                InterpretationSpec::Cost
+            },
+            design,
+        };
+        Ok((inputs, Some(cost), None))
+    }
 }
 
 /// Parses repeated `I,J[,K]` values; errors name the occurrence (1-based).
@@ -311,6 +372,7 @@ pub(crate) fn flag_of(field: &str, cost_flag: &str) -> String {
     let root = field.split(['.', '[']).next().unwrap_or(field);
     match (root, field) {
         ("cost", _) => cost_flag.into(),
+        ("metric", _) => "--tensor".into(),
         ("spacing", _) => "--spacing".into(),
         ("obstacles", _) => "--obstacles".into(),
         (_, "stop.max_distance") => "--max-distance".into(),
@@ -337,6 +399,7 @@ mod tests {
         assert_eq!(flag_of("spacing", "--cost"), "--spacing");
         assert_eq!(flag_of("stop.max_distance", "--cost"), "--max-distance");
         assert_eq!(flag_of("obstacles", "--cost"), "--obstacles");
+        assert_eq!(flag_of("metric.dataset", "--tensor"), "--tensor");
     }
 
     #[test]

@@ -12,34 +12,39 @@
 //!     --source 10,20 --to 200,31.5 --format svg --out road.svg
 //! geodex path --cost img.png --design '{"kind": "edges"}' --contour 10,10 --contour 10,90 \
 //!     --contour 80,50 --out contour.json
+//! geodex path --tensor T.npy --source 10,20 --to 200,31.5 --out paths.json
 //! ```
+//!
+//! `--tensor` is the Riemannian metric of `geodex distance --tensor`; the
+//! paths then descend along `−M⁻¹∇U` and their geodesic length is
+//! `∫ sqrt(γ'ᵀ M γ')`.
 
-use std::collections::HashMap;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
 use super::distance::{
-    flag, op_error, parse_points, read_array, ConnectivityArg, DistanceError, MethodArg,
+    flag, op_error, parse_points, ConnectivityArg, DistanceError, MethodArg, MetricFlags,
 };
 use crate::numerics::grid::MAX_CELLS;
 use crate::numerics::Control;
-use crate::ops::grid_distance::{
-    ConnectivitySpec, CostSpec, InterpretationSpec, MethodSpec, SourceSpec,
-};
+use crate::ops::grid_distance::{ConnectivitySpec, MethodSpec, SourceSpec};
 use crate::ops::grid_metric::DesignSpec;
 use crate::ops::grid_paths::{self, GridPathsRequest, PathFormat};
-use crate::ops::{InputArray, OpLimits};
+use crate::ops::OpLimits;
 
 /// Flags of `geodex path`.
 #[derive(Debug, Clone, Args)]
-#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape"])))]
+#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape", "tensor"])))]
 pub struct PathArgs {
     /// Cost per unit length W (or a speed with --speed, or an image with
     /// --design): a 2D or 3D array (NPY, PNG, TIFF, NIfTI...). +inf marks a wall.
     #[arg(long, value_name = "COST.npy")]
     pub cost: Option<PathBuf>,
+    /// A Riemannian metric instead of a cost: (N, M, 3) holding m11, m12, m22
+    /// (2D) or (N, M, P, 6) holding m11, m12, m13, m22, m23, m33 (3D).
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["speed", "design", "method", "connectivity"])]
+    pub tensor: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
     pub shape: Option<Vec<usize>>,
@@ -149,44 +154,18 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
     if design.is_some() && args.cost.is_none() {
         return Err(flag("--design", "needs the image in --cost"));
     }
-    let cost_flag = if args.cost.is_some() {
-        "--cost"
-    } else {
-        "--shape"
+    let metric = MetricFlags {
+        cost: args.cost.as_deref(),
+        shape: args.shape.as_deref(),
+        tensor: args.tensor.as_deref(),
+        obstacles: args.obstacles.as_deref(),
+        speed: args.speed,
     };
-    let mut inputs: HashMap<String, InputArray> = HashMap::new();
-    if let Some(path) = &args.cost {
-        let decoded = read_array("--cost", path)?;
-        inputs.insert(
-            "cost".into(),
-            InputArray {
-                array: Arc::new(decoded.array),
-                spacing: decoded.spacing,
-            },
-        );
-    }
-    if let Some(path) = &args.obstacles {
-        let decoded = read_array("--obstacles", path)?;
-        inputs.insert(
-            "obstacles".into(),
-            InputArray {
-                array: Arc::new(decoded.array),
-                spacing: None,
-            },
-        );
-    }
+    let (inputs, cost, tensor) = metric.load(design)?;
+    let cost_flag = metric.flag();
     let request = GridPathsRequest {
-        cost: CostSpec {
-            dataset: args.cost.as_ref().map(|_| "cost".to_string()),
-            constant: args.shape.as_ref().map(|_| 1.0),
-            shape: args.shape.clone(),
-            interpretation: if args.speed {
-                InterpretationSpec::Speed
-            } else {
-                InterpretationSpec::Cost
-            },
-            design,
-        },
+        cost,
+        metric: tensor,
         spacing: args.spacing.clone(),
         obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
         sources: sources

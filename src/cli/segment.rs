@@ -414,7 +414,8 @@ pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
         });
     }
     let request = GridSegmentRequest {
-        cost,
+        cost: Some(cost),
+        metric: None,
         spacing: args.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),

@@ -29,11 +29,13 @@
 //!   centre of the source cell).
 //!
 //! The direction field is generic ([`DescentDirection`]): an anisotropic
-//! solver passes `x, ∇U ↦ −T⁻¹(x)∇U` and reuses the whole descent.
+//! solver passes `x, ∇U ↦ −T⁻¹(x)∇U` and reuses the whole descent (see
+//! [`crate::numerics::anisotropic::descent`]).
 //!
-//! Lengths: the geodesic length `L = ∫ W(γ) |γ'|` (physical units) is
-//! integrated with Simpson's rule per segment, with `W` interpolated like
-//! `∇U`; the Euclidean length is the physical polyline length.
+//! Lengths: the geodesic length `L = ∫ ‖γ'‖_γ` (physical units; `W |γ'|`
+//! for a cost, `sqrt(γ'ᵀ M γ')` for a tensor, [`CellCost::norm_at`]) is
+//! integrated with Simpson's rule per segment, with the integrand
+//! interpolated like `∇U`; the Euclidean length is the physical polyline length.
 
 use std::collections::HashMap;
 
@@ -316,9 +318,40 @@ impl SourceSet {
 
 /// The cost `W` of a cell (linear index), `+inf` on walls: an
 /// [`IsotropicCost`] or a plain slice of values.
+///
+/// The two provided methods are what a Riemannian metric `M` overrides (see
+/// [`crate::numerics::anisotropic::descent::Riemannian`]): the local norm of a
+/// displacement (the integrand of the geodesic length) and the gradient of
+/// the exact local solution around a point source.
 pub trait CellCost {
     /// `W` of cell `i`.
     fn cost_at(&self, i: usize) -> f64;
+
+    /// The length integrand: the local norm `‖d‖` at cell `i` of a physical
+    /// displacement `d` (per storage axis). Default `W |d|`; a tensor metric
+    /// gives `sqrt(dᵀ M d)`. `+inf` on walls.
+    #[inline]
+    fn norm_at(&self, i: usize, d: [f64; 3]) -> f64 {
+        scaled_norm(self.cost_at(i), d)
+    }
+
+    /// `∇_x ‖x − p‖` at cell `i`, `d = x − p` physical: the gradient of the
+    /// solution the solver prescribes around a point source `p`. Default
+    /// `W d / |d|`; a tensor metric gives `M d / sqrt(dᵀ M d)`. `None` at
+    /// `p` itself (`d = 0`) and on walls.
+    #[inline]
+    fn local_gradient(&self, i: usize, d: [f64; 3]) -> Option<[f64; 3]> {
+        let w = self.cost_at(i);
+        let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        (dn > 0.0 && w.is_finite()).then(|| d.map(|v| w * v / dn))
+    }
+}
+
+/// The length integrand of [`CellCost::norm_at`] and the local gradient of
+/// [`CellCost::local_gradient`] for a scalar cost `W`.
+#[inline]
+fn scaled_norm(w: f64, d: [f64; 3]) -> f64 {
+    w * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
 impl CellCost for IsotropicCost<'_> {
@@ -451,14 +484,15 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
             let local = near.and_then(|p| {
                 let cf = c.map(|v| v as f64);
                 let d: [f64; 3] = [0, 1, 2].map(|k| (cf[k] - p[k]) * h[k]);
-                let dn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                 let di2: f64 = (0..3).map(|k| (cf[k] - p[k]).powi(2)).sum();
                 if di2 > LOCAL_RADIUS * LOCAL_RADIUS || self.segment_blocked(cf, p) {
                     return None;
                 }
-                let wc = self.cost.cost_at(self.grid.linear(c.map(|v| v as usize)));
                 // At p itself the direction is undefined: the corner is skipped.
-                Some((dn > 0.0 && wc.is_finite()).then(|| d.map(|v| wc * v / dn)))
+                Some(
+                    self.cost
+                        .local_gradient(self.grid.linear(c.map(|v| v as usize)), d),
+                )
             });
             let gc = match local {
                 Some(local) => local,
@@ -680,19 +714,27 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
         (uq < limit).then(|| (q.map(|v| v as f64), uq))
     }
 
-    /// Geodesic (Simpson per segment, `W` interpolated) and Euclidean lengths.
+    /// Geodesic and Euclidean lengths. Per segment `a → b` with physical
+    /// displacement `d`, Simpson's rule on the length integrand
+    /// `‖d‖(x)` ([`CellCost::norm_at`], interpolated over the non-wall cells
+    /// around `x`): `(‖d‖(a) + 4‖d‖(m) + ‖d‖(b)) / 6`, which is
+    /// `∫ W |γ'|` for a cost and `∫ sqrt(γ'ᵀ M γ')` for a tensor metric.
     fn lengths(&self, points: &[[f64; 3]]) -> (f64, f64) {
+        let h = self.grid.spacing3();
         let mut geo = 0.0;
         let mut euc = 0.0;
         for w in points.windows(2) {
             let (a, b) = (w[0], w[1]);
-            let len = self.grid.physical_distance3(a, b);
+            let d = [0, 1, 2].map(|k| (b[k] - a[k]) * h[k]);
             let m = [0, 1, 2].map(|k| 0.5 * (a[k] + b[k]));
-            let wa = self.cost(a);
-            let wb = self.cost(b);
-            let wm = self.cost(m);
-            geo += len * (wa + 4.0 * wm + wb) / 6.0;
-            euc += len;
+            let norm = |x: [f64; 3]| {
+                self.interpolate(x, |c| {
+                    self.cost
+                        .norm_at(self.grid.linear(c.map(|v| v as usize)), d)
+                })
+            };
+            geo += (norm(a) + 4.0 * norm(m) + norm(b)) / 6.0;
+            euc += self.grid.physical_distance3(a, b);
         }
         (geo, euc)
     }

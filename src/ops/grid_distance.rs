@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::grid_metric::{apply_design, array_to_f64, DesignSpec};
+use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::eikonal::{
@@ -33,8 +34,17 @@ use crate::numerics::{self, Control, Grid, GridError};
     "order": 2
 }))]
 pub struct GridDistanceRequest {
-    /// The metric: a cost (or speed) dataset, or a constant over a shape.
-    pub cost: CostSpec,
+    /// The isotropic metric: a cost (or speed) dataset, or a constant over a
+    /// shape. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field `M`, `kind`: `components`,
+    /// `constant`, `eigen`, `energy_anisotropy`, `structure_tensor`,
+    /// `height_map`) instead of `cost`: solved by the anisotropic fast
+    /// marching (adaptive stencils), so `method` must be `fast_marching`
+    /// and `connectivity` is not used. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell along each axis (axis 0 first). Default: the
     /// spacing stored with the cost dataset (NIfTI voxel size), else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -331,6 +341,20 @@ pub struct SourceSpec {
     pub values: Option<Vec<f64>>,
 }
 
+impl SourceSpec {
+    /// The core source (a validated spec has exactly one of `point` and `cells`).
+    pub fn to_source(&self) -> Source {
+        match (&self.point, &self.cells) {
+            (Some(p), _) => Source::Point(p.clone()),
+            (None, Some(c)) => Source::Cells {
+                cells: c.clone(),
+                values: self.values.clone(),
+            },
+            (None, None) => Source::Point(Vec::new()),
+        }
+    }
+}
+
 /// The solver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
@@ -408,6 +432,12 @@ pub struct SolveStats {
     pub sweeps: Option<u64>,
     /// Wall time of the solve alone, in seconds.
     pub solve_seconds: f64,
+    /// With `metric`: the largest anisotropy ratio `sqrt(λmax/λmin)` of the field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_anisotropy: Option<f64>,
+    /// With `metric`: the widest stencil offset used, in cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stencil_width: Option<u64>,
 }
 
 /// The arrays and statistics of a solve.
@@ -427,13 +457,10 @@ pub struct GridDistanceResult {
 
 impl GridDistanceRequest {
     /// The dataset ids this request reads, with the field that names each.
-    pub fn dataset_ids(&self) -> Vec<(&'static str, &str)> {
-        let mut ids = Vec::new();
-        if let Some(id) = &self.cost.dataset {
-            ids.push(("cost.dataset", id.as_str()));
-        }
+    pub fn dataset_ids(&self) -> Vec<(String, String)> {
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
         if let Some(id) = &self.obstacles {
-            ids.push(("obstacles", id.as_str()));
+            ids.push(("obstacles".into(), id.clone()));
         }
         ids
     }
@@ -441,7 +468,13 @@ impl GridDistanceRequest {
     /// Checks everything that does not need the input arrays, so that a
     /// request can be refused before it is queued.
     pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.cost.validate(limits)?;
+        check_metric_choice(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            self.method,
+            self.connectivity,
+            limits,
+        )?;
         if self.sources.is_empty() {
             return Err(OpError::invalid(
                 "sources",
@@ -569,9 +602,6 @@ impl Operation for GridDistanceRequest {
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
         GridDistanceRequest::dataset_ids(self)
-            .into_iter()
-            .map(|(field, id)| (field.to_string(), id.to_string()))
-            .collect()
     }
 
     /// Arrays: `distance` (f64), `labels` (i32, unless `outputs.labels` is
@@ -617,8 +647,13 @@ pub fn execute(
     control: &Control<'_>,
 ) -> Result<GridDistanceResult, OpError> {
     req.validate(limits)?;
+    let cost = match (&req.cost, &req.metric) {
+        (Some(cost), _) => cost,
+        (None, Some(metric)) => return execute_tensor(req, metric, inputs, limits, control),
+        (None, None) => return Err(OpError::invalid("cost", "missing")),
+    };
     let resolved = resolve_cost(
-        &req.cost,
+        cost,
         req.spacing.as_deref(),
         req.obstacles.as_deref(),
         inputs,
@@ -627,18 +662,7 @@ pub fn execute(
     )?;
     let cost = resolved.isotropic()?;
     let spacing = resolved.spacing.clone();
-    let sources = req
-        .sources
-        .iter()
-        .map(|s| match (&s.point, &s.cells) {
-            (Some(p), _) => Source::Point(p.clone()),
-            (None, Some(c)) => Source::Cells {
-                cells: c.clone(),
-                values: s.values.clone(),
-            },
-            (None, None) => Source::Point(Vec::new()),
-        })
-        .collect();
+    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
     let problem = EikonalProblem {
         grid: resolved.grid.clone(),
         cost,
@@ -654,12 +678,118 @@ pub fn execute(
             stop: stop_name(out.stop).into(),
             sweeps: out.sweeps.map(|s| s as u64),
             solve_seconds,
+            max_anisotropy: None,
+            stencil_width: None,
         },
         labels: req.outputs.labels.then_some(out.labels),
         frozen_order: out.frozen_order,
         distance: out.distance,
         spacing,
     })
+}
+
+/// `grid.distance` with a tensor `metric`: the anisotropic solve of
+/// [`solve_tensor`] on the field of [`resolve_tensor`].
+fn execute_tensor(
+    req: &GridDistanceRequest,
+    metric: &TensorSpec,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<GridDistanceResult, OpError> {
+    let resolved = resolve_tensor(
+        metric,
+        "metric",
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+        inputs,
+        limits,
+    )?;
+    let spec = TensorSolveSpec {
+        order: req.order,
+        factoring: req.factoring,
+        stop: StopRules {
+            targets: req.stop.targets.clone(),
+            max_distance: req.stop.max_distance,
+            max_frozen: req.stop.max_frozen.map(|n| n as usize),
+        },
+        record_order: req.outputs.frozen_order,
+    };
+    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
+    let (problem, spacing) = resolved.into_problem(sources);
+    let solved = solve_tensor(&problem, &spec, "metric", control)?;
+    let out = solved.out;
+    Ok(GridDistanceResult {
+        stats: SolveStats {
+            cells: problem.grid.len() as u64,
+            frozen: out.output.frozen as u64,
+            stop: stop_name(out.output.stop).into(),
+            sweeps: None,
+            solve_seconds: solved.seconds,
+            max_anisotropy: Some(out.stencil.max_anisotropy),
+            stencil_width: Some(out.stencil.max_offset as u64),
+        },
+        labels: req.outputs.labels.then_some(out.output.labels),
+        frozen_order: out.output.frozen_order,
+        distance: out.output.distance,
+        spacing,
+    })
+}
+
+/// Checks the metric of an operation that takes `cost` or `metric`:
+/// exactly one of them; a tensor `metric` runs the anisotropic fast
+/// marching, so `method` must be `fast_marching` and `connectivity` (a
+/// Dijkstra option) must be left at its default. Errors name `cost`,
+/// `metric`, `method` or `connectivity`.
+pub fn check_metric_choice(
+    cost: Option<&CostSpec>,
+    metric: Option<&TensorSpec>,
+    method: MethodSpec,
+    connectivity: ConnectivitySpec,
+    limits: &OpLimits,
+) -> Result<(), OpError> {
+    match (cost, metric) {
+        (Some(cost), None) => cost.validate(limits),
+        (None, Some(metric)) => {
+            metric.validate("metric", limits)?;
+            if method != MethodSpec::FastMarching {
+                return Err(OpError::invalid(
+                    "method",
+                    "a tensor `metric` is solved by fast marching only; leave `method` out",
+                ));
+            }
+            if connectivity != ConnectivitySpec::default() {
+                return Err(OpError::invalid(
+                    "connectivity",
+                    "`connectivity` is a Dijkstra option; a tensor `metric` uses adaptive stencils",
+                ));
+            }
+            Ok(())
+        }
+        (Some(_), Some(_)) => Err(OpError::invalid(
+            "metric",
+            "give either `cost` (isotropic) or `metric` (a tensor field), not both",
+        )),
+        (None, None) => Err(OpError::invalid(
+            "cost",
+            "give either `cost` (isotropic) or `metric` (a tensor field)",
+        )),
+    }
+}
+
+/// The dataset ids of a `cost` or `metric` section, with their JSON paths.
+pub fn metric_dataset_ids(
+    cost: Option<&CostSpec>,
+    metric: Option<&TensorSpec>,
+) -> Vec<(String, String)> {
+    let mut ids = Vec::new();
+    if let Some(id) = cost.and_then(|c| c.dataset.as_ref()) {
+        ids.push(("cost.dataset".to_string(), id.clone()));
+    }
+    if let Some(m) = metric {
+        ids.extend(m.dataset_ids("metric"));
+    }
+    ids
 }
 
 /// The wire name of a stop reason.

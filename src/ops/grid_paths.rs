@@ -21,6 +21,15 @@
 //! sources, scheme). A later request with the same inputs and new end points
 //! only runs the descents. The HTTP layer holds the cache; jobs and the
 //! command line run without one.
+//!
+//! Tensor metrics (`metric` instead of `cost`): each map is an anisotropic
+//! fast-marching solve and each path the shared descent along `−M⁻¹∇U` with
+//! its Riemannian length `∫ sqrt(γ'ᵀ M γ')`
+//! ([`crate::numerics::anisotropic::descent::Riemannian`]). Such requests
+//! **skip the cache** (nothing is looked up or kept; `stats.maps[].cached`
+//! is false): a cached cost holds a scalar `W` per cell, not a tensor field.
+//! Their `cost_key` includes the metric all the same, so it can never match
+//! an isotropic entry.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -32,13 +41,17 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::grid_distance::{
-    eikonal_error, resolve_cost, stop_name, ConnectivitySpec, CostSpec, GridDistanceRequest,
-    MethodSpec, OutputSpec, SourceSpec, StopSpec,
+    check_metric_choice, eikonal_error, metric_dataset_ids, resolve_cost, stop_name,
+    ConnectivitySpec, CostSpec, GridDistanceRequest, MethodSpec, OutputSpec, SourceSpec, StopSpec,
 };
+use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::io::{render_png, ArrayData, Colormap, RenderOptions, RenderStyle};
+use crate::numerics::anisotropic::descent::Riemannian;
 use crate::numerics::metric::{CostValues, Interpretation};
-use crate::numerics::paths::{DescentOptions, DistanceMap, Isotropic, PathError, SourceSet};
+use crate::numerics::paths::{
+    CellCost, DescentOptions, DistanceMap, Isotropic, PathError, SourceSet,
+};
 use crate::numerics::{self, Control, EikonalProblem, Grid, IsotropicCost, Source, StopRules};
 
 /// Request of `grid.paths` (`POST /v1/grid/paths`, job operation
@@ -51,9 +64,17 @@ use crate::numerics::{self, Control, EikonalProblem, Grid, IsotropicCost, Source
     "ends": [[200.0, 310.0], [150.5, 20.0]]
 }))]
 pub struct GridPathsRequest {
-    /// The metric: a cost (or speed) dataset, a constant over a shape, or an
-    /// image with a `design` (intensity, edges, vesselness).
-    pub cost: CostSpec,
+    /// The isotropic metric: a cost (or speed) dataset, a constant over a
+    /// shape, or an image with a `design` (intensity, edges, vesselness).
+    /// Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field), as in `grid.distance`: paths
+    /// descend along `−M⁻¹∇U` and `geodesic_length` is `∫ sqrt(γ'ᵀ M γ')`.
+    /// `method` must be `fast_marching`. Not cached. Give exactly one of
+    /// `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell per axis. Default: the dataset's spacing, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(min_items = 2, max_items = 3)]
@@ -247,7 +268,13 @@ impl GridPathsRequest {
 
     /// Checks everything that does not need the input arrays.
     pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.cost.validate(limits)?;
+        check_metric_choice(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            self.method,
+            self.connectivity,
+            limits,
+        )?;
         let modes = [
             !self.ends.is_empty() || !self.sources.is_empty(),
             !self.waypoints.is_empty(),
@@ -353,8 +380,8 @@ impl GridPathsRequest {
         if self.format != PathFormat::Json {
             let ndim = self
                 .cost
-                .shape
                 .as_ref()
+                .and_then(|c| c.shape.as_ref())
                 .map(Vec::len)
                 .or_else(|| points.first().map(Vec::len));
             if ndim == Some(3) {
@@ -368,13 +395,10 @@ impl GridPathsRequest {
     }
 
     /// The dataset ids this request reads, with the field that names each.
-    pub fn dataset_ids(&self) -> Vec<(&'static str, &str)> {
-        let mut ids = Vec::new();
-        if let Some(id) = &self.cost.dataset {
-            ids.push(("cost.dataset", id.as_str()));
-        }
+    pub fn dataset_ids(&self) -> Vec<(String, String)> {
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
         if let Some(id) = &self.obstacles {
-            ids.push(("obstacles", id.as_str()));
+            ids.push(("obstacles".into(), id.clone()));
         }
         ids
     }
@@ -387,6 +411,7 @@ impl GridPathsRequest {
     ) -> GridDistanceRequest {
         GridDistanceRequest {
             cost: self.cost.clone(),
+            metric: self.metric.clone(),
             spacing: self.spacing.clone(),
             obstacles: self.obstacles.clone(),
             sources,
@@ -444,9 +469,9 @@ impl GridPathsRequest {
         }
     }
 
-    /// Cache key of the cost: everything that determines `W` and the grid.
+    /// Cache key of the cost: everything that determines the metric and the grid.
     pub fn cost_key(&self) -> String {
-        serde_json::json!([self.cost, self.spacing, self.obstacles]).to_string()
+        serde_json::json!([self.cost, self.metric, self.spacing, self.obstacles]).to_string()
     }
 
     fn map_key(&self, cost_key: &str, sources: &[SourceSpec]) -> String {
@@ -470,9 +495,6 @@ impl Operation for GridPathsRequest {
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
         GridPathsRequest::dataset_ids(self)
-            .into_iter()
-            .map(|(f, id)| (f.to_string(), id.to_string()))
-            .collect()
     }
 
     /// No arrays. Document: `{"paths": [PathOut], "chain"?: ChainOut,
@@ -673,6 +695,11 @@ pub fn execute(
     cost: Option<Arc<CachedCost>>,
 ) -> Result<GridPathsResult, OpError> {
     req.validate(limits)?;
+    let cost_spec = match (&req.cost, &req.metric) {
+        (Some(c), _) => c,
+        (None, Some(metric)) => return execute_tensor(req, metric, inputs, limits, control),
+        (None, None) => return Err(OpError::invalid("cost", "missing")),
+    };
     let cost_key = req.cost_key();
     let started = Instant::now();
     let cached_cost = cost.or_else(|| cache.and_then(|c| c.cost(&cost_key)));
@@ -681,7 +708,7 @@ pub fn execute(
         Some(c) => c,
         None => {
             let resolved = resolve_cost(
-                &req.cost,
+                cost_spec,
                 req.spacing.as_deref(),
                 req.obstacles.as_deref(),
                 inputs,
@@ -783,6 +810,156 @@ pub fn execute(
         }
         descent_seconds += t.elapsed().as_secs_f64();
     }
+    let stats = PathsStats {
+        cells: grid.len() as u64,
+        cost_cached,
+        cost_seconds,
+        maps,
+        descent_seconds,
+    };
+    assemble(req, inputs, &cost, paths, stats)
+}
+
+/// `grid.paths` with a tensor `metric`: one anisotropic solve per leg and
+/// the descent along `−M⁻¹∇U`, without the cache (see the module docs).
+fn execute_tensor(
+    req: &GridPathsRequest,
+    metric: &TensorSpec,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<GridPathsResult, OpError> {
+    let started = Instant::now();
+    let resolved = resolve_tensor(
+        metric,
+        "metric",
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+        inputs,
+        limits,
+    )?;
+    if req.format != PathFormat::Json && resolved.grid.ndim() == 3 {
+        return Err(OpError::invalid(
+            "format",
+            "geojson and svg are for 2D grids; use json in 3D",
+        ));
+    }
+    // A scalar picture of the metric (sqrt(tr M / d), +inf on walls) for the SVG background.
+    let cost = {
+        let r = Riemannian::new(&resolved.grid, &resolved.metric);
+        CachedCost {
+            w: (0..resolved.grid.len()).map(|i| r.cost_at(i)).collect(),
+            grid: resolved.grid.clone(),
+            spacing: resolved.spacing.clone(),
+        }
+    };
+    let cost_seconds = started.elapsed().as_secs_f64();
+    let (mut problem, _) = resolved.into_problem(Vec::new());
+    let descent = DescentOptions {
+        step: req.step,
+        ..DescentOptions::default()
+    };
+    let (mut maps, mut paths, mut descent_seconds) = (Vec::new(), Vec::new(), 0.0);
+    let chain_mode = req.ends.is_empty();
+    for (leg_index, leg) in req.legs().into_iter().enumerate() {
+        let grid = &problem.grid;
+        let targets: Vec<Vec<f64>> = if req.early_stop {
+            leg.ends
+                .iter()
+                .filter(|(_, p)| grid.point3(p).is_ok_and(|q| grid.contains_point3(q)))
+                .map(|(_, p)| p.clone())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        problem.sources = leg.sources.iter().map(SourceSpec::to_source).collect();
+        let spec = TensorSolveSpec {
+            order: req.order,
+            factoring: req.factoring,
+            stop: StopRules {
+                targets,
+                ..StopRules::default()
+            },
+            record_order: false,
+        };
+        let solved = solve_tensor(&problem, &spec, "metric", control)
+            .map_err(|e| rename_leg_source(e, &leg))?;
+        let out = &solved.out.output;
+        maps.push(LegStats {
+            cached: false,
+            frozen: out.frozen as u64,
+            stop: stop_name(out.stop).to_string(),
+            solve_seconds: solved.seconds,
+        });
+        let t = Instant::now();
+        let u: Vec<f64> = out.distance.iter().copied().collect();
+        let grid = &problem.grid;
+        let set = SourceSet::new(grid, &problem.sources)
+            .map_err(|e| path_error(e, "ends", &*leg.source_field))?;
+        let riemannian = Riemannian::new(grid, &problem.metric);
+        let dm = DistanceMap::new(grid, &u, &riemannian)
+            .map_err(|e| OpError::invalid("metric", e.to_string()))?;
+        for (end_index, (field, end)) in leg.ends.iter().enumerate() {
+            if control.is_cancelled() {
+                return Err(OpError::Cancelled);
+            }
+            let path = dm
+                .descend(&set, end, &riemannian, &descent)
+                .map_err(|e| path_error(e, field, &*leg.source_field))?;
+            paths.push(PathOut {
+                index: if chain_mode { leg_index } else { end_index },
+                source: path.source,
+                end: end.clone(),
+                points: path.index_points(grid),
+                world: path.world_points(grid),
+                geodesic_length: path.geodesic_length,
+                euclidean_length: path.euclidean_length,
+                continuous_steps: path.continuous_steps as u64,
+                discrete_steps: path.discrete_steps as u64,
+            });
+        }
+        descent_seconds += t.elapsed().as_secs_f64();
+    }
+    let stats = PathsStats {
+        cells: problem.grid.len() as u64,
+        cost_cached: false,
+        cost_seconds,
+        maps,
+        descent_seconds,
+    };
+    assemble(req, inputs, &cost, paths, stats)
+}
+
+/// Renames a `sources[i]` error of a leg's solve to the leg's own field (a
+/// way-point, a contour point).
+fn rename_leg_source(e: OpError, leg: &Leg) -> OpError {
+    match e.field().and_then(|f| f.strip_prefix("sources[")) {
+        Some(rest) => {
+            let index = rest
+                .split(']')
+                .next()
+                .and_then(|i| i.parse().ok())
+                .unwrap_or(0);
+            match e {
+                OpError::Invalid { reason, .. } => {
+                    OpError::invalid((leg.source_field)(index), reason)
+                }
+                other => other,
+            }
+        }
+        None => e,
+    }
+}
+
+/// The answer of [`execute`]: the chain (way-point and contour modes) and
+/// the formats, from the paths of every leg.
+fn assemble(
+    req: &GridPathsRequest,
+    inputs: &dyn Inputs,
+    cost: &CachedCost,
+    paths: Vec<PathOut>,
+    stats: PathsStats,
+) -> Result<GridPathsResult, OpError> {
     let chain = (!req.waypoints.is_empty() || !req.contour.is_empty()).then(|| {
         let mut points: Vec<Vec<f64>> = Vec::new();
         let mut world: Vec<Vec<f64>> = Vec::new();
@@ -799,16 +976,9 @@ pub fn execute(
             euclidean_length: paths.iter().map(|p| p.euclidean_length).sum(),
         }
     });
-    let stats = PathsStats {
-        cells: grid.len() as u64,
-        cost_cached,
-        cost_seconds,
-        maps,
-        descent_seconds,
-    };
     let geojson = (req.format == PathFormat::Geojson).then(|| geojson(&paths, chain.as_ref()));
     let svg = match req.format {
-        PathFormat::Svg => Some(svg(req, inputs, &cost, &paths, chain.as_ref())?),
+        PathFormat::Svg => Some(svg(req, inputs, cost, &paths, chain.as_ref())?),
         _ => None,
     };
     Ok(GridPathsResult {
@@ -845,18 +1015,7 @@ fn solve_leg(
         targets,
         ..StopRules::default()
     };
-    let sources: Vec<Source> = leg
-        .sources
-        .iter()
-        .map(|s| match (&s.point, &s.cells) {
-            (Some(p), _) => Source::Point(p.clone()),
-            (None, Some(c)) => Source::Cells {
-                cells: c.clone(),
-                values: s.values.clone(),
-            },
-            (None, None) => Source::Point(Vec::new()),
-        })
-        .collect();
+    let sources: Vec<Source> = leg.sources.iter().map(SourceSpec::to_source).collect();
     let iso = IsotropicCost::new(
         grid,
         CostValues::F64(Cow::Borrowed(&cost.w)),
@@ -870,26 +1029,9 @@ fn solve_leg(
         sources,
     };
     let started = Instant::now();
-    let out = numerics::solve(&problem, &options, control).map_err(|e| {
-        let e = eikonal_error(e);
-        // Source errors name this leg's own field (a way-point, a contour point).
-        match e.field().and_then(|f| f.strip_prefix("sources[")) {
-            Some(rest) => {
-                let index = rest
-                    .split(']')
-                    .next()
-                    .and_then(|i| i.parse().ok())
-                    .unwrap_or(0);
-                match e {
-                    OpError::Invalid { reason, .. } => {
-                        OpError::invalid((leg.source_field)(index), reason)
-                    }
-                    other => other,
-                }
-            }
-            None => e,
-        }
-    })?;
+    // Source errors name this leg's own field (a way-point, a contour point).
+    let out = numerics::solve(&problem, &options, control)
+        .map_err(|e| rename_leg_source(eikonal_error(e), leg))?;
     let solve_seconds = started.elapsed().as_secs_f64();
     let sources = SourceSet::new(grid, &problem.sources)
         .map_err(|e| path_error(e, "ends", &*leg.source_field))?;
@@ -980,8 +1122,8 @@ fn svg(
     let h = grid.spacing();
     let image = req
         .cost
-        .dataset
-        .as_deref()
+        .as_ref()
+        .and_then(|c| c.dataset.as_deref())
         .and_then(|id| inputs.get(id))
         .map(|a| a.array)
         .filter(|a| a.shape() == shape);

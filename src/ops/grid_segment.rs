@@ -15,12 +15,14 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::grid_distance::{
-    eikonal_error, resolve_cost, ConnectivitySpec, CostSpec, GridDistanceRequest, MethodSpec,
-    OutputSpec, SourceSpec, StopSpec,
+    check_metric_choice, eikonal_error, metric_dataset_ids, resolve_cost, ConnectivitySpec,
+    CostSpec, GridDistanceRequest, MethodSpec, OutputSpec, SourceSpec, StopSpec,
 };
 use super::grid_inputs::{check_non_negative, check_point, check_spacing, fetch, shaped};
+use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
+use crate::numerics::anisotropic::TensorProblem;
 use crate::numerics::contours;
 use crate::numerics::eikonal::{EikonalOptions, EikonalProblem, Order, Source, StopRules};
 use crate::numerics::segmentation::voronoi;
@@ -41,8 +43,15 @@ pub const MAX_CONTOUR_VERTICES: usize = 2_000_000;
     "max_distance": 50.0
 }))]
 pub struct GridSegmentRequest {
-    /// The metric, exactly as in `grid.distance`.
-    pub cost: CostSpec,
+    /// The isotropic metric, exactly as in `grid.distance`. Give exactly one
+    /// of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field), exactly as in `grid.distance`:
+    /// the Voronoi cells of the seeds under `sqrt(vᵀ M v)` (anisotropic fast
+    /// marching, one solve per label). Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell along each axis. Default: the cost dataset's, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(min_items = 2, max_items = 3)]
@@ -97,6 +106,13 @@ pub struct SeedSpec {
 
 impl GridSegmentRequest {
     fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
+        check_metric_choice(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            MethodSpec::FastMarching,
+            ConnectivitySpec::default(),
+            limits,
+        )?;
         check_spacing(&self.spacing)?;
         if self.seeds.is_empty() && self.seed_image.is_none() {
             return Err(OpError::invalid(
@@ -141,6 +157,12 @@ impl GridSegmentRequest {
     }
 }
 
+/// The metric of a segmentation, resolved once for every label's solve.
+enum SegmentMetric {
+    Cost(super::grid_distance::ResolvedCost),
+    Tensor(super::tensor_spec::ResolvedTensor),
+}
+
 /// The shape of the grid a cost spec describes.
 pub fn cost_shape(
     cost: &CostSpec,
@@ -170,7 +192,8 @@ pub fn distance_request(
     max_distance: Option<f64>,
 ) -> GridDistanceRequest {
     GridDistanceRequest {
-        cost: cost.clone(),
+        cost: Some(cost.clone()),
+        metric: None,
         spacing: spacing.clone(),
         obstacles: obstacles.clone(),
         sources,
@@ -269,10 +292,7 @@ impl Operation for GridSegmentRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = Vec::new();
-        if let Some(id) = &self.cost.dataset {
-            ids.push(("cost.dataset".to_string(), id.clone()));
-        }
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".to_string(), id.clone()));
         }
@@ -296,18 +316,31 @@ impl Operation for GridSegmentRequest {
         self.check(limits)?;
         let started = Instant::now();
         // The metric is built once (design included) and shared by every label's solve.
-        let resolved = resolve_cost(
-            &self.cost,
-            self.spacing.as_deref(),
-            self.obstacles.as_deref(),
-            inputs,
-            limits,
-            control,
-        )?;
-        let grid = resolved.grid.clone();
+        let resolved = match (&self.cost, &self.metric) {
+            (Some(cost), _) => SegmentMetric::Cost(resolve_cost(
+                cost,
+                self.spacing.as_deref(),
+                self.obstacles.as_deref(),
+                inputs,
+                limits,
+                control,
+            )?),
+            (None, Some(metric)) => SegmentMetric::Tensor(resolve_tensor(
+                metric,
+                "metric",
+                self.spacing.as_deref(),
+                self.obstacles.as_deref(),
+                inputs,
+                limits,
+            )?),
+            (None, None) => return Err(OpError::invalid("cost", "missing")),
+        };
+        let (grid, spacing) = match &resolved {
+            SegmentMetric::Cost(r) => (r.grid.clone(), r.spacing.clone()),
+            SegmentMetric::Tensor(r) => (r.grid.clone(), r.spacing.clone()),
+        };
         let shape = grid.shape().to_vec();
         let ndim = shape.len();
-        let cost = resolved.isotropic()?;
         // Sources per label, with the field each one came from.
         let mut per_label: BTreeMap<i32, (Vec<Source>, Vec<String>)> = BTreeMap::new();
         for (i, s) in self.seeds.iter().enumerate() {
@@ -391,23 +424,46 @@ impl Operation for GridSegmentRequest {
                 max_distance: self.max_distance,
                 max_frozen: None,
             });
-        let maps: Vec<Vec<f64>> = jobs
-            .par_iter()
-            .map(|(_, sources, origin, _)| {
-                let problem = EikonalProblem {
-                    grid: grid.clone(),
-                    cost: cost.clone(),
-                    sources: sources.clone(),
+        let maps: Vec<Vec<f64>> = match &resolved {
+            SegmentMetric::Cost(r) => {
+                let cost = r.isotropic()?;
+                jobs.par_iter()
+                    .map(|(_, sources, origin, _)| {
+                        let problem = EikonalProblem {
+                            grid: grid.clone(),
+                            cost: cost.clone(),
+                            sources: sources.clone(),
+                        };
+                        numerics::solve(&problem, &options, control)
+                            .map(|r| r.distance.into_iter().collect())
+                            .map_err(|e| rename_source_field(eikonal_error(e), origin))
+                    })
+                    .collect::<Result<_, _>>()?
+            }
+            SegmentMetric::Tensor(r) => {
+                let spec = TensorSolveSpec {
+                    order: self.order,
+                    factoring: true,
+                    stop: options.stop.clone(),
+                    record_order: false,
                 };
-                numerics::solve(&problem, &options, control)
-                    .map(|r| r.distance.into_iter().collect())
-                    .map_err(|e| rename_source_field(eikonal_error(e), origin))
-            })
-            .collect::<Result<_, _>>()?;
+                jobs.par_iter()
+                    .map(|(_, sources, origin, _)| {
+                        let problem = TensorProblem {
+                            grid: grid.clone(),
+                            metric: r.metric.clone(),
+                            sources: sources.clone(),
+                        };
+                        solve_tensor(&problem, &spec, "metric", control)
+                            .map(|s| s.out.output.distance.into_iter().collect())
+                            .map_err(|e| rename_source_field(e, origin))
+                    })
+                    .collect::<Result<_, _>>()?
+            }
+        };
         let label_ids: Vec<i32> = jobs.iter().map(|j| j.0).collect();
         let v = voronoi(&maps, &label_ids);
         drop(maps);
-        let spacing = resolved.spacing.clone();
         let mut stats: Vec<serde_json::Value> = Vec::new();
         for (label, _, _, seeds) in &jobs {
             let cells = v.labels.iter().filter(|&&l| l == *label).count();

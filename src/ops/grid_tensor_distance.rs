@@ -1,21 +1,25 @@
 //! `grid.tensor_distance`: the Riemannian distance map `U` (and Voronoi
 //! labels, and minimal paths) of a tensor metric on a 2D or 3D grid.
 //!
+//! The same solve as `grid.distance` with a `metric` (both go through
+//! [`super::tensor_spec::resolve_tensor`] and [`super::tensor_spec::solve_tensor`]),
+//! kept as its own endpoint with the stencil statistics and start-to-source
+//! paths; the paths are the shared descent of [`crate::numerics::paths`]
+//! with the Riemannian direction ([`crate::numerics::anisotropic::descent`]).
+//!
 //! Coordinates are in array index order (axis 0 first) and in index units;
 //! physical lengths are index offsets times the per-axis `spacing`.
-
-use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::grid_distance::{stop_name, OutputSpec, SourceSpec, StopSpec};
-use super::tensor_spec::{tensor_error, TensorSpec};
+use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
-use crate::numerics::anisotropic::descent::{minimal_path, DescentOptions};
-use crate::numerics::anisotropic::{solve, TensorOptions, TensorProblem, TensorSolveError};
-use crate::numerics::{Control, Grid, Order, Source, StopRules};
+use crate::numerics::anisotropic::descent::minimal_path;
+use crate::numerics::paths::DescentOptions;
+use crate::numerics::{Control, Source, StopRules};
 
 /// Request of `grid.tensor_distance` (`POST /v1/grid/tensor-distance`, job
 /// operation `grid.tensor_distance`).
@@ -58,7 +62,7 @@ pub struct GridTensorDistanceRequest {
     /// source, traced along `−M⁻¹∇U`. Default: none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub paths: Vec<Vec<f64>>,
-    /// Step of the path descent, in cells. Default: 0.5.
+    /// Step of the path descent, in cells (steps above 0.5 are taken as 0.5). Default: 0.5.
     #[serde(default = "default_step")]
     pub path_step: f64,
 }
@@ -109,13 +113,14 @@ impl GridTensorDistanceRequest {
     fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
         self.tensor.validate("tensor", limits)?;
         let probe = super::grid_distance::GridDistanceRequest {
-            cost: super::grid_distance::CostSpec {
+            cost: Some(super::grid_distance::CostSpec {
                 dataset: None,
                 constant: Some(1.0),
                 shape: Some(vec![1, 1]),
                 interpretation: Default::default(),
                 design: None,
-            },
+            }),
+            metric: None,
             spacing: self.spacing.clone(),
             obstacles: None,
             sources: self.sources.clone(),
@@ -176,92 +181,64 @@ impl Operation for GridTensorDistanceRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         self.check(limits)?;
-        let shape = self.tensor.shape(inputs, "tensor", limits)?;
-        let spacing = self
-            .spacing
-            .clone()
-            .or_else(|| self.tensor.dataset_spacing(inputs))
-            .unwrap_or_else(|| vec![1.0; shape.len()]);
-        let grid = Grid::new(&shape, &spacing).map_err(|e| match e {
-            crate::numerics::GridError::Spacing { axis, .. } => {
-                OpError::invalid(format!("spacing[{axis}]"), e.to_string())
-            }
-            _ => OpError::invalid("spacing", e.to_string()),
-        })?;
-        let mut metric = self.tensor.build(&grid, inputs, "tensor")?;
-        if let Some(id) = &self.obstacles {
-            let m = inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
-                field: "obstacles".into(),
-                id: id.clone(),
-            })?;
-            if m.array.shape() != shape.as_slice() {
-                return Err(OpError::invalid(
-                    "obstacles",
-                    format!(
-                        "the mask has shape {:?} but the grid has shape {:?}",
-                        m.array.shape(),
-                        shape
-                    ),
-                ));
-            }
-            metric = metric
-                .with_walls(&grid, m.array.to_mask())
-                .map_err(|e| tensor_error(e, "tensor"))?;
-        }
-        let sources = self
-            .sources
-            .iter()
-            .map(|s| match (&s.point, &s.cells) {
-                (Some(p), _) => Source::Point(p.clone()),
-                (None, Some(c)) => Source::Cells {
-                    cells: c.clone(),
-                    values: s.values.clone(),
-                },
-                (None, None) => Source::Point(Vec::new()),
-            })
-            .collect();
-        let mut options = TensorOptions::DEFAULT
-            .with_order(if self.order == 1 {
-                Order::First
-            } else {
-                Order::Second
-            })
-            .with_factoring(self.factoring)
-            .with_stop(StopRules {
+        let resolved = resolve_tensor(
+            &self.tensor,
+            "tensor",
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+            inputs,
+            limits,
+        )?;
+        let sources: Vec<Source> = self.sources.iter().map(SourceSpec::to_source).collect();
+        let (problem, spacing) = resolved.into_problem(sources);
+        let spec = TensorSolveSpec {
+            order: self.order,
+            factoring: self.factoring,
+            stop: StopRules {
                 targets: self.stop.targets.clone(),
                 max_distance: self.stop.max_distance,
                 max_frozen: self.stop.max_frozen.map(|n| n as usize),
-            });
-        options.record_order = self.outputs.frozen_order;
-        let problem = TensorProblem {
-            grid,
-            metric,
-            sources,
+            },
+            record_order: self.outputs.frozen_order,
         };
-        let started = Instant::now();
-        let out = solve(&problem, &options, control).map_err(solve_error)?;
-        let solve_seconds = started.elapsed().as_secs_f64();
+        let solved = solve_tensor(&problem, &spec, "tensor", control)?;
+        let (out, solve_seconds) = (solved.out, solved.seconds);
         let flat: Vec<f64> = out.output.distance.iter().copied().collect();
         let mut paths = Vec::with_capacity(self.paths.len());
+        // The shared descent of numerics::paths takes steps of at most half a cell.
         let descent = DescentOptions {
-            step: self.path_step,
-            max_steps: None,
+            step: self.path_step.min(0.5),
+            ..DescentOptions::default()
         };
         for (i, p) in self.paths.iter().enumerate() {
-            let path = minimal_path(&problem.grid, &problem.metric, &flat, p, &descent)
-                .map_err(|e| OpError::invalid(format!("paths[{i}]"), e.to_string()))?;
+            if control.is_cancelled() {
+                return Err(OpError::Cancelled);
+            }
+            let field = format!("paths[{i}]");
+            let path = minimal_path(
+                &problem.grid,
+                &problem.metric,
+                &flat,
+                &problem.sources,
+                p,
+                &descent,
+            )
+            .map_err(|e| OpError::invalid(field.clone(), e.to_string()))?;
             let p3 = problem
                 .grid
                 .point3(p)
-                .map_err(|e| OpError::invalid(format!("paths[{i}]"), e.to_string()))?;
+                .map_err(|e| OpError::invalid(field, e.to_string()))?;
             let start = flat[problem
                 .grid
                 .linear(crate::numerics::eikonal::nearest_cell(&problem.grid, p3))];
+            // Ordered from the start point to the source, as this operation always answered.
+            let mut points = path.index_points(&problem.grid);
+            points.reverse();
             paths.push(TensorPath {
-                points: path.points,
-                length: path.length,
+                points,
+                length: path.geodesic_length,
                 distance: start,
-                reached_source: path.reached_source,
+                reached_source: true,
             });
         }
         let stats = TensorSolveStats {
@@ -294,23 +271,5 @@ impl Operation for GridTensorDistanceRequest {
         }
         let document = serde_json::json!({ "stats": stats, "paths": paths });
         Ok(OpOutput { arrays, document })
-    }
-}
-
-fn solve_error(e: TensorSolveError) -> OpError {
-    match e {
-        TensorSolveError::Cancelled => OpError::Cancelled,
-        TensorSolveError::Source { index, reason } => {
-            OpError::invalid(format!("sources[{index}]"), reason)
-        }
-        TensorSolveError::Target { index, reason } => {
-            OpError::invalid(format!("stop.targets[{index}]"), reason)
-        }
-        TensorSolveError::NoSources => OpError::invalid("sources", e.to_string()),
-        TensorSolveError::Option { field, reason } => OpError::invalid(field, reason),
-        TensorSolveError::Tensor(t) => tensor_error(t, "tensor"),
-        TensorSolveError::Grid(_) | TensorSolveError::Dimension { .. } => {
-            OpError::invalid("tensor", e.to_string())
-        }
     }
 }

@@ -6,13 +6,16 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use std::time::Instant;
+
 use super::{InputArray, Inputs, OpError, OpLimits};
 use crate::numerics::anisotropic::height_map::height_map_metric;
 use crate::numerics::anisotropic::structure_tensor::edge_metric;
 use crate::numerics::anisotropic::{
-    components, eigen_tensor, energy_anisotropy, TensorError, TensorField,
+    components, eigen_tensor, energy_anisotropy, solve, TensorError, TensorField, TensorOptions,
+    TensorOutput, TensorProblem, TensorSolveError,
 };
-use crate::numerics::Grid;
+use crate::numerics::{Control, Grid, GridError, Order, Source, StopRules};
 
 /// The metric tensor field `M(x)` (symmetric positive definite; a
 /// displacement `v` costs `sqrt(vᵀ M v)`). Components are in array index
@@ -506,4 +509,146 @@ pub fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<()
 /// Components per cell of a grid of this dimension (re-exported for callers).
 pub fn per_cell(ndim: usize) -> usize {
     components(ndim)
+}
+
+/// A tensor metric resolved against its datasets: the grid, the spacing
+/// that was used and the validated field, walls (`obstacles`) included.
+/// Shared by every operation that takes a tensor (`grid.distance`,
+/// `grid.segment`, `grid.paths` with `metric`, and `grid.tensor_distance`).
+#[derive(Debug, Clone)]
+pub struct ResolvedTensor {
+    /// Shape and spacing.
+    pub grid: Grid,
+    /// The spacing per caller axis.
+    pub spacing: Vec<f64>,
+    /// The SPD field with its walls.
+    pub metric: TensorField,
+}
+
+/// Builds the field of `spec` (named `prefix` in errors): the grid shape
+/// from its datasets or `shape`, the spacing (`spacing`, else the first
+/// dataset's, else 1), every cell checked (the first bad cell is named),
+/// and the non-zero cells of the `obstacles` mask as walls.
+pub fn resolve_tensor(
+    spec: &TensorSpec,
+    prefix: &str,
+    spacing: Option<&[f64]>,
+    obstacles: Option<&str>,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+) -> Result<ResolvedTensor, OpError> {
+    spec.validate(prefix, limits)?;
+    let shape = spec.shape(inputs, prefix, limits)?;
+    let spacing = spacing
+        .map(<[f64]>::to_vec)
+        .or_else(|| spec.dataset_spacing(inputs))
+        .unwrap_or_else(|| vec![1.0; shape.len()]);
+    let grid = Grid::new(&shape, &spacing).map_err(|e| match e {
+        GridError::Spacing { axis, .. } => {
+            OpError::invalid(format!("spacing[{axis}]"), e.to_string())
+        }
+        _ => OpError::invalid("spacing", e.to_string()),
+    })?;
+    let mut metric = spec.build(&grid, inputs, prefix)?;
+    if let Some(id) = obstacles {
+        let m = lookup(inputs, "obstacles", id)?;
+        if m.array.shape() != shape.as_slice() {
+            return Err(OpError::invalid(
+                "obstacles",
+                format!(
+                    "the mask has shape {:?} but the grid has shape {:?}",
+                    m.array.shape(),
+                    shape
+                ),
+            ));
+        }
+        metric = metric
+            .with_walls(&grid, m.array.to_mask())
+            .map_err(|e| tensor_error(e, prefix))?;
+    }
+    Ok(ResolvedTensor {
+        grid,
+        spacing,
+        metric,
+    })
+}
+
+/// The scheme of an anisotropic solve, as the requests give it.
+#[derive(Debug, Clone, Default)]
+pub struct TensorSolveSpec {
+    /// 1 or 2 (anything but 1 is second order).
+    pub order: u8,
+    /// Source factoring around point sources.
+    pub factoring: bool,
+    /// Early stopping.
+    pub stop: StopRules,
+    /// Record the freeze rank of each cell.
+    pub record_order: bool,
+}
+
+/// A solve of [`solve_tensor`] and its wall time.
+#[derive(Debug, Clone)]
+pub struct TensorSolved {
+    /// The distance, labels, stop reason and stencil statistics.
+    pub out: TensorOutput,
+    /// Seconds of the solve (stencils and marching).
+    pub seconds: f64,
+}
+
+impl ResolvedTensor {
+    /// The problem of a solve from `sources` (moves the grid and the field).
+    pub fn into_problem(self, sources: Vec<Source>) -> (TensorProblem, Vec<f64>) {
+        (
+            TensorProblem {
+                grid: self.grid,
+                metric: self.metric,
+                sources,
+            },
+            self.spacing,
+        )
+    }
+}
+
+/// Runs the anisotropic fast marching on `problem`; errors name
+/// `sources[i]`, `stop.targets[i]` or the metric section `prefix`.
+pub fn solve_tensor(
+    problem: &TensorProblem,
+    spec: &TensorSolveSpec,
+    prefix: &str,
+    control: &Control<'_>,
+) -> Result<TensorSolved, OpError> {
+    let mut options = TensorOptions::DEFAULT
+        .with_order(if spec.order == 1 {
+            Order::First
+        } else {
+            Order::Second
+        })
+        .with_factoring(spec.factoring)
+        .with_stop(spec.stop.clone());
+    options.record_order = spec.record_order;
+    let started = Instant::now();
+    let out = solve(problem, &options, control).map_err(|e| tensor_solve_error(e, prefix))?;
+    Ok(TensorSolved {
+        out,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// A core anisotropic solve error as an [`OpError`]; the metric is named `prefix`.
+pub fn tensor_solve_error(e: TensorSolveError, prefix: &str) -> OpError {
+    match e {
+        TensorSolveError::Cancelled => OpError::Cancelled,
+        TensorSolveError::Source { index, reason } => {
+            OpError::invalid(format!("sources[{index}]"), reason)
+        }
+        TensorSolveError::Target { index, reason } => {
+            OpError::invalid(format!("stop.targets[{index}]"), reason)
+        }
+        TensorSolveError::NoSources => OpError::invalid("sources", e.to_string()),
+        TensorSolveError::Option { field, reason } => OpError::invalid(field, reason),
+        TensorSolveError::Tensor(t) => tensor_error(t, prefix),
+        TensorSolveError::Grid(_) | TensorSolveError::Dimension { .. } => {
+            OpError::invalid(prefix, e.to_string())
+        }
+    }
 }

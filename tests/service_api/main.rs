@@ -11,3 +11,4 @@ mod paths;
 mod segment;
 
 mod tensor;
+mod tensor_metric_ops;

@@ -189,6 +189,10 @@ fn with_file_cost(bytes: &[u8]) -> Vec<u8> {
     let Ok(serde_json::Value::Object(mut params)) = serde_json::from_slice(bytes) else {
         return bytes.to_vec();
     };
+    if params.contains_key("metric") {
+        // A tensor metric names its own datasets; the file is not a cost.
+        return bytes.to_vec();
+    }
     let cost = params
         .entry("cost")
         .or_insert_with(|| serde_json::Value::Object(Default::default()));
@@ -307,7 +311,9 @@ pub async fn distance(
                     SourceFormat::from(decoded.format),
                 )
                 .await?;
-            params.cost.dataset = Some(meta.id);
+            if let Some(cost) = params.cost.as_mut() {
+                cost.dataset = Some(meta.id);
+            }
         }
         return super::jobs::respond_async(&state, &headers, &params).await;
     }
@@ -324,19 +330,15 @@ pub async fn distance(
         );
     }
     for (field, id) in params.dataset_ids() {
-        if inputs.contains_key(id) {
+        if inputs.contains_key(&id) {
             continue;
         }
-        match state.store.load(id).await {
+        match state.store.load(&id).await {
             Ok(input) => {
-                inputs.insert(id.to_string(), input);
+                inputs.insert(id, input);
             }
             Err(StoreError::NotFound(_)) => {
-                return Err(OpError::UnknownDataset {
-                    field: field.into(),
-                    id: id.into(),
-                }
-                .into())
+                return Err(OpError::UnknownDataset { field, id }.into())
             }
             Err(e) => return Err(e.into()),
         }

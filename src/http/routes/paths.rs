@@ -100,16 +100,12 @@ pub async fn paths(
     let mut inputs: HashMap<String, InputArray> = HashMap::new();
     if cost.is_none() || format == PathFormat::Svg {
         for (field, id) in request.dataset_ids() {
-            match state.store.load(id).await {
+            match state.store.load(&id).await {
                 Ok(input) => {
-                    inputs.insert(id.to_string(), input);
+                    inputs.insert(id, input);
                 }
                 Err(StoreError::NotFound(_)) => {
-                    return Err(OpError::UnknownDataset {
-                        field: field.into(),
-                        id: id.into(),
-                    }
-                    .into())
+                    return Err(OpError::UnknownDataset { field, id }.into())
                 }
                 Err(e) => return Err(e.into()),
             }

@@ -1,343 +1,220 @@
-//! Minimal paths of a tensor metric: descent of the distance map along the
-//! Riemannian gradient direction (seed eq. 1.26)
+//! Minimal paths of a tensor metric: the descent of [`crate::numerics::paths`]
+//! with the Riemannian direction field (seed eq. 1.26)
 //!
 //! ```text
 //! γ'(t) = −v / |v|,     v = M(γ)⁻¹ ∇U(γ),
 //! ```
 //!
-//! not along `−∇U`: for an anisotropic metric the two differ, and only `v`
-//! is tangent to the geodesics. `∇U` is the multilinear interpolation of
-//! the cell gradients (central differences, one-sided next to walls and
-//! unreached cells), `M⁻¹` that of the nearest cell, and the curve is
-//! integrated with Heun's method (second order) at a fixed step in cells.
+//! not `−∇U`: for an anisotropic metric the two differ, and only `v` is
+//! tangent to the geodesics. Everything else is the isotropic descent
+//! (one code path): `∇U` interpolated from the upwind / centred cell
+//! gradients, classical Runge–Kutta 4 at a step of at most half a cell, the
+//! discrete steepest-descent fallback where the direction is undefined or
+//! would climb `U` or cross a wall, a step budget, arrival within one cell of
+//! a source. [`Riemannian`] supplies the three metric-dependent pieces:
 //!
-//! Robustness (as the isotropic paths): where the interpolated direction is
-//! not finite, vanishes, would climb `U` or enter a wall, the step falls
-//! back to the discrete descent (to the neighbour cell, 8 / 26-connected,
-//! with the smallest `U`); the descent ends at a discrete minimum of `U` (a
-//! source) or after a step budget, and says which.
+//! * the direction `−M⁻¹∇U` ([`DescentDirection`]), with `M` of the cell nearest to `x`;
+//! * the length integrand `sqrt(dᵀ M d)` ([`CellCost::norm_at`]), so the
+//!   geodesic length is the Riemannian `∫ sqrt(γ'ᵀ M γ')` (Simpson per segment);
+//! * the gradient `M d / sqrt(dᵀ M d)` of the local solution `‖x − p‖_M`
+//!   around a point source ([`CellCost::local_gradient`]).
+//!
+//! Walls are the wall cells of the field (`+inf` cost, and `U = +inf` there
+//! in the solver's output), so a path never crosses one.
 
-use super::stencil::dual_index_metric;
 use super::tensor::TensorField;
+use crate::numerics::eikonal::Source;
 use crate::numerics::grid::Grid;
+use crate::numerics::paths::{
+    CellCost, DescentDirection, DescentOptions, DistanceMap, MinimalPath, PathError, SourceSet,
+};
 
-/// Options of [`minimal_path`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DescentOptions {
-    /// Step length in cells (index units). Default 0.5.
-    pub step: f64,
-    /// Most steps before giving up. Default: 20 × the sum of the shape.
-    pub max_steps: Option<usize>,
+/// A tensor field seen by the generic descent: the direction `−M⁻¹∇U`, the
+/// length integrand `sqrt(dᵀ M d)` and walls. Vectors are per storage axis
+/// (axis 0 is the padding axis of a 2D grid, where every component is 0).
+#[derive(Debug, Clone, Copy)]
+pub struct Riemannian<'a> {
+    grid: &'a Grid,
+    metric: &'a TensorField,
 }
 
-impl Default for DescentOptions {
-    fn default() -> Self {
-        Self {
-            step: 0.5,
-            max_steps: None,
+impl<'a> Riemannian<'a> {
+    /// Wraps the metric of `grid` (the field's dimension must be the grid's).
+    pub fn new(grid: &'a Grid, metric: &'a TensorField) -> Self {
+        Self { grid, metric }
+    }
+
+    /// `M` of cell `i` as a padded 3×3 matrix (zero row and column 0 in 2D).
+    #[inline]
+    fn matrix(&self, i: usize) -> [[f64; 3]; 3] {
+        let m = self.metric.at(i);
+        if m.len() == 3 {
+            [[0.0; 3], [0.0, m[0], m[1]], [0.0, m[1], m[2]]]
+        } else {
+            [[m[0], m[1], m[2]], [m[1], m[3], m[4]], [m[2], m[4], m[5]]]
         }
+    }
+
+    /// `M⁻¹ g` for the SPD `M` of cell `i` (Cramer's rule; `None` if singular).
+    fn solve(&self, i: usize, g: [f64; 3]) -> Option<[f64; 3]> {
+        let m = self.metric.at(i);
+        if m.len() == 3 {
+            let det = m[0] * m[2] - m[1] * m[1];
+            if !(det.is_finite() && det > 0.0) {
+                return None;
+            }
+            return Some([
+                0.0,
+                (m[2] * g[1] - m[1] * g[2]) / det,
+                (m[0] * g[2] - m[1] * g[1]) / det,
+            ]);
+        }
+        let a = self.matrix(i);
+        let det3 = |c: [[f64; 3]; 3]| {
+            c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1])
+                - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
+                + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0])
+        };
+        let det = det3(a);
+        if !(det.is_finite() && det > 0.0) {
+            return None;
+        }
+        let mut x = [0.0; 3];
+        for (col, xc) in x.iter_mut().enumerate() {
+            let mut b = a;
+            for row in 0..3 {
+                b[row][col] = g[row];
+            }
+            *xc = det3(b) / det;
+        }
+        Some(x)
+    }
+
+    /// `M d` at cell `i`.
+    #[inline]
+    fn apply(&self, i: usize, d: [f64; 3]) -> [f64; 3] {
+        let a = self.matrix(i);
+        [0, 1, 2].map(|r| a[r][0] * d[0] + a[r][1] * d[1] + a[r][2] * d[2])
     }
 }
 
-/// A minimal path, from the start point to the source.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MinimalPath {
-    /// Points in index coordinates (caller's axes, axis 0 first).
-    pub points: Vec<Vec<f64>>,
-    /// Its Riemannian length `Σ ‖Δx‖_M` (physical units).
-    pub length: f64,
-    /// True when the descent ended at a minimum of `U` (a source).
-    pub reached_source: bool,
-    /// Steps that fell back to the discrete descent.
-    pub discrete_steps: usize,
+impl CellCost for Riemannian<'_> {
+    /// A representative scalar cost `sqrt(tr M / d)` (`+inf` on walls); the
+    /// descent itself uses [`CellCost::norm_at`] and [`CellCost::local_gradient`].
+    fn cost_at(&self, i: usize) -> f64 {
+        if self.metric.is_wall(i) {
+            return f64::INFINITY;
+        }
+        let m = self.metric.at(i);
+        let trace = if m.len() == 3 {
+            m[0] + m[2]
+        } else {
+            m[0] + m[3] + m[5]
+        };
+        (trace / self.metric.ndim() as f64).sqrt()
+    }
+
+    /// `sqrt(dᵀ M d)`, `+inf` on walls.
+    fn norm_at(&self, i: usize, d: [f64; 3]) -> f64 {
+        if self.metric.is_wall(i) {
+            return f64::INFINITY;
+        }
+        let md = self.apply(i, d);
+        (d[0] * md[0] + d[1] * md[1] + d[2] * md[2]).max(0.0).sqrt()
+    }
+
+    /// `M d / sqrt(dᵀ M d)`: the gradient of `‖x − p‖_M`.
+    fn local_gradient(&self, i: usize, d: [f64; 3]) -> Option<[f64; 3]> {
+        if self.metric.is_wall(i) {
+            return None;
+        }
+        let md = self.apply(i, d);
+        let n = (d[0] * md[0] + d[1] * md[1] + d[2] * md[2]).max(0.0).sqrt();
+        (n > 0.0 && n.is_finite()).then(|| md.map(|v| v / n))
+    }
 }
 
-/// Why a descent could not start.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum DescentError {
-    /// The distance map does not have one value per cell.
-    #[error("the distance map has {got} values but the grid has {expected} cells")]
-    Length {
-        /// Values given.
-        got: usize,
-        /// Cells of the grid.
-        expected: usize,
-    },
-    /// The start point is outside the grid or was not reached by the front.
-    #[error("start point {0:?}: {1}")]
-    Start(Vec<f64>, String),
-    /// The step is not a positive finite number.
-    #[error("step {0} must be finite and > 0")]
-    Step(f64),
+impl DescentDirection for Riemannian<'_> {
+    /// `−M⁻¹∇U` with `M` of the cell nearest to `x`.
+    fn direction(&self, x: [f64; 3], grad: [f64; 3]) -> Option<[f64; 3]> {
+        let i = self
+            .grid
+            .linear(crate::numerics::eikonal::nearest_cell(self.grid, x));
+        if self.metric.is_wall(i) {
+            return None;
+        }
+        self.solve(i, grad).map(|v| v.map(|c| -c))
+    }
 }
 
-/// Descends `distance` (the solution for `metric` on `grid`, C order) from
-/// `start` (index coordinates) to the source.
+/// The minimal path from `end` (index coordinates, axis 0 first) to the
+/// nearest of `sources` on `distance` (the solution for `metric` on `grid`,
+/// C order, `+inf` on walls and unreached cells), traced along `−M⁻¹∇U` by
+/// [`DistanceMap::descend`]. `geodesic_length` is the Riemannian length.
 pub fn minimal_path(
     grid: &Grid,
     metric: &TensorField,
     distance: &[f64],
-    start: &[f64],
+    sources: &[Source],
+    end: &[f64],
     options: &DescentOptions,
-) -> Result<MinimalPath, DescentError> {
-    if distance.len() != grid.len() {
-        return Err(DescentError::Length {
-            got: distance.len(),
-            expected: grid.len(),
-        });
-    }
-    if !(options.step.is_finite() && options.step > 0.0) {
-        return Err(DescentError::Step(options.step));
-    }
-    let p = grid
-        .point3(start)
-        .map_err(|e| DescentError::Start(start.to_vec(), e.to_string()))?;
-    if !grid.contains_point3(p) {
-        return Err(DescentError::Start(
-            start.to_vec(),
-            "outside the grid".into(),
-        ));
-    }
-    let d = Descent {
-        grid,
-        metric,
-        u: distance,
-    };
-    if !d.u[d.nearest(p)].is_finite() {
-        return Err(DescentError::Start(
-            start.to_vec(),
-            "the front did not reach it (wall or unreached cell)".into(),
-        ));
-    }
-    let shape = grid.shape3();
-    let budget = options
-        .max_steps
-        .unwrap_or(20 * (shape[0] + shape[1] + shape[2]));
-    let mut x = p;
-    let mut pts = vec![x];
-    let mut length = 0.0;
-    let mut discrete_steps = 0;
-    let mut reached = false;
-    for _ in 0..budget {
-        let here = d.nearest(x);
-        if d.is_minimum(here) && d.interp(x) <= d.u[here] + 1e-12 {
-            // Land on the source cell itself.
-            let c = grid.unravel(here).map(|v| v as f64);
-            if c != x {
-                length += d.seg_len(x, c);
-                x = c;
-                pts.push(x);
-            }
-            reached = true;
-            break;
-        }
-        let next = d.heun(x, options.step).filter(|y| {
-            grid.contains_point3(*y) && d.u[d.nearest(*y)].is_finite() && d.interp(*y) < d.interp(x)
-        });
-        let y = match next {
-            Some(y) => y,
-            None => {
-                discrete_steps += 1;
-                match d.best_neighbour(here) {
-                    Some(c) => grid.unravel(c).map(|v| v as f64),
-                    None => {
-                        reached = true;
-                        break;
-                    }
-                }
-            }
+) -> Result<MinimalPath, PathError> {
+    let riemannian = Riemannian::new(grid, metric);
+    let set = SourceSet::new(grid, sources)?;
+    let map = DistanceMap::new(grid, distance, &riemannian)?;
+    map.descend(&set, end, &riemannian, options)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::anisotropic::{solve, TensorOptions, TensorProblem};
+    use crate::numerics::Control;
+
+    /// A constant metric: geodesics are straight segments, the Riemannian
+    /// length is `sqrt((x − s)ᵀ M (x − s))`, and the path is not the one of
+    /// `−∇U` (which bends towards the cheap axis).
+    #[test]
+    fn constant_metric_paths_are_straight_with_riemannian_length() {
+        let grid = Grid::unit(&[61, 61]).unwrap();
+        // Cheap along (1, 1): eigenvalue 1 there, 16 across.
+        let m = crate::numerics::anisotropic::eigen_tensor(2, &[1.0, 16.0], &[1.0, 1.0]).unwrap();
+        let metric = TensorField::constant(&grid, &m).unwrap();
+        let sources = vec![Source::Point(vec![30.0, 30.0])];
+        let problem = TensorProblem {
+            grid: grid.clone(),
+            metric: metric.clone(),
+            sources: sources.clone(),
         };
-        length += d.seg_len(x, y);
-        x = y;
-        pts.push(x);
-    }
-    let off = 3 - grid.ndim();
-    Ok(MinimalPath {
-        points: pts.iter().map(|q| q[off..].to_vec()).collect(),
-        length,
-        reached_source: reached,
-        discrete_steps,
-    })
-}
-
-struct Descent<'a> {
-    grid: &'a Grid,
-    metric: &'a TensorField,
-    u: &'a [f64],
-}
-
-impl Descent<'_> {
-    fn nearest(&self, p: [f64; 3]) -> usize {
-        self.grid
-            .linear(crate::numerics::eikonal::nearest_cell(self.grid, p))
-    }
-
-    fn neighbours(&self, i: usize) -> Vec<usize> {
-        let s = self.grid.shape3();
-        let c = self.grid.unravel(i);
-        let mut out = Vec::with_capacity(26);
-        for a in -1i64..=1 {
-            for b in -1i64..=1 {
-                for e in -1i64..=1 {
-                    if a == 0 && b == 0 && e == 0 {
-                        continue;
-                    }
-                    let y = [c[0] as i64 + a, c[1] as i64 + b, c[2] as i64 + e];
-                    if (0..3).all(|k| y[k] >= 0 && (y[k] as usize) < s[k]) {
-                        out.push(
-                            self.grid
-                                .linear([y[0] as usize, y[1] as usize, y[2] as usize]),
-                        );
-                    }
-                }
-            }
-        }
-        out
-    }
-
-    fn is_minimum(&self, i: usize) -> bool {
-        self.neighbours(i).iter().all(|&j| self.u[j] >= self.u[i])
-    }
-
-    fn best_neighbour(&self, i: usize) -> Option<usize> {
-        self.neighbours(i)
-            .into_iter()
-            .filter(|&j| self.u[j] < self.u[i])
-            .min_by(|&a, &b| self.u[a].total_cmp(&self.u[b]))
-    }
-
-    /// Index-unit gradient of `U` at a cell: central differences, one-sided
-    /// where a neighbour is infinite or outside.
-    fn cell_grad(&self, i: usize) -> [f64; 3] {
-        let s = self.grid.shape3();
-        let st = self.grid.strides3();
-        let c = self.grid.unravel(i);
-        let mut g = [0.0; 3];
-        for k in 0..3 {
-            if s[k] < 2 {
-                continue;
-            }
-            let lo = (c[k] > 0)
-                .then(|| self.u[i - st[k]])
-                .filter(|v| v.is_finite());
-            let hi = (c[k] + 1 < s[k])
-                .then(|| self.u[i + st[k]])
-                .filter(|v| v.is_finite());
-            g[k] = match (lo, hi) {
-                (Some(a), Some(b)) => 0.5 * (b - a),
-                (Some(a), None) => self.u[i] - a,
-                (None, Some(b)) => b - self.u[i],
-                (None, None) => 0.0,
-            };
-        }
-        g
-    }
-
-    /// Multilinear interpolation over the `2^d` cells around `p` of a per-cell
-    /// quantity; cells with infinite `U` are skipped (weights renormalised).
-    fn interp_with<const N: usize>(
-        &self,
-        p: [f64; 3],
-        f: impl Fn(usize) -> [f64; N],
-    ) -> Option<[f64; N]> {
-        let s = self.grid.shape3();
-        let mut base = [0usize; 3];
-        let mut frac = [0.0; 3];
-        for k in 0..3 {
-            let fl = p[k].floor().clamp(0.0, (s[k].max(2) - 2) as f64);
-            base[k] = if s[k] == 1 { 0 } else { fl as usize };
-            frac[k] = if s[k] == 1 { 0.0 } else { p[k] - fl };
-        }
-        let mut acc = [0.0; N];
-        let mut wsum = 0.0;
-        for corner in 0..8 {
-            let mut idx = base;
-            let mut w = 1.0;
-            for k in 0..3 {
-                let bit = (corner >> k) & 1;
-                if s[k] == 1 {
-                    if bit == 1 {
-                        w = 0.0;
-                    }
-                    continue;
-                }
-                idx[k] += bit;
-                w *= if bit == 1 { frac[k] } else { 1.0 - frac[k] };
-            }
-            if w <= 0.0 {
-                continue;
-            }
-            let i = self.grid.linear(idx);
-            if !self.u[i].is_finite() {
-                continue;
-            }
-            let v = f(i);
-            for n in 0..N {
-                acc[n] += w * v[n];
-            }
-            wsum += w;
-        }
-        (wsum > 1e-9).then(|| acc.map(|a| a / wsum))
-    }
-
-    fn interp(&self, p: [f64; 3]) -> f64 {
-        self.interp_with(p, |i| [self.u[i]])
-            .map_or(f64::INFINITY, |v| v[0])
-    }
-
-    /// The unit descent direction `−D̃∇U / |D̃∇U|` at `p` (index units).
-    fn direction(&self, p: [f64; 3]) -> Option<[f64; 3]> {
-        let g = self.interp_with(p, |i| self.cell_grad(i))?;
-        let i = self.nearest(p);
-        let h = self.grid.spacing();
-        let dual = dual_index_metric(self.metric.at(i), h);
-        let off = 3 - self.grid.ndim();
-        let mut v = [0.0; 3];
-        if dual.len() == 3 {
-            v[1] = -(dual[0] * g[1] + dual[1] * g[2]);
-            v[2] = -(dual[1] * g[1] + dual[2] * g[2]);
-        } else {
-            let m = [
-                [dual[0], dual[1], dual[2]],
-                [dual[1], dual[3], dual[4]],
-                [dual[2], dual[4], dual[5]],
-            ];
-            for a in 0..3 {
-                v[a] = -(m[a][0] * g[0] + m[a][1] * g[1] + m[a][2] * g[2]);
-            }
-        }
-        let _ = off;
-        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        (n.is_finite() && n > 1e-12).then(|| v.map(|c| c / n))
-    }
-
-    fn heun(&self, x: [f64; 3], step: f64) -> Option<[f64; 3]> {
-        let d1 = self.direction(x)?;
-        let mid = [0, 1, 2].map(|k| x[k] + step * d1[k]);
-        let s = self.grid.shape3();
-        let clamp = |q: [f64; 3]| [0, 1, 2].map(|k| q[k].clamp(0.0, (s[k] - 1) as f64));
-        let d2 = self.direction(clamp(mid)).unwrap_or(d1);
-        let mut d = [0, 1, 2].map(|k| d1[k] + d2[k]);
-        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if n.is_nan() || n <= 1e-12 {
-            d = d1;
-        } else {
-            d = d.map(|c| c / n);
-        }
-        Some([0, 1, 2].map(|k| x[k] + step * d[k]))
-    }
-
-    /// `‖y − x‖_M` in physical units with the metric of the midpoint's cell.
-    fn seg_len(&self, x: [f64; 3], y: [f64; 3]) -> f64 {
-        let mid = [0, 1, 2].map(|k| 0.5 * (x[k] + y[k]));
-        let m = super::fast_marching::index_metric(self.grid, self.metric.at(self.nearest(mid)));
-        let z = [0, 1, 2].map(|k| y[k] - x[k]);
-        let mut s = 0.0;
-        for a in 0..3 {
-            for b in 0..3 {
-                s += z[a] * m[a][b] * z[b];
-            }
-        }
-        s.max(0.0).sqrt()
+        let out = solve(&problem, &TensorOptions::DEFAULT, &Control::new()).unwrap();
+        let u: Vec<f64> = out.output.distance.iter().copied().collect();
+        let end = [50.0, 42.0];
+        let path = minimal_path(
+            &grid,
+            &metric,
+            &u,
+            &sources,
+            &end,
+            &DescentOptions::default(),
+        )
+        .unwrap();
+        let d = [20.0, 12.0];
+        let exact = (m[0] * d[0] * d[0] + 2.0 * m[1] * d[0] * d[1] + m[2] * d[1] * d[1]).sqrt();
+        assert!(
+            (path.geodesic_length - exact).abs() < 0.03 * exact,
+            "length {} vs {exact}",
+            path.geodesic_length
+        );
+        // Every vertex within a cell of the straight segment.
+        let pts = path.index_points(&grid);
+        let worst = pts
+            .iter()
+            .map(|p| {
+                let (a, b) = (p[0] - 30.0, p[1] - 30.0);
+                (a * d[1] - b * d[0]).abs() / (d[0] * d[0] + d[1] * d[1]).sqrt()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 1.0, "deviation {worst}");
+        assert_eq!(pts.last().unwrap(), &end.to_vec());
     }
 }
