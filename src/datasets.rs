@@ -357,7 +357,7 @@ impl DatasetStore {
         let ttl = chrono::Duration::from_std(self.config.ttl).unwrap_or(chrono::Duration::MAX);
         let meta = DatasetMeta {
             id: id.into(),
-            kind: if array.shape().len() == 3 {
+            kind: if array.shape().len() >= 3 {
                 DatasetKind::Volume
             } else {
                 DatasetKind::Image

@@ -442,6 +442,46 @@ fn tensor_distance_2d_matches_the_exact_riemannian_distance() {
     assert!(worst < 0.03, "relative max error {worst}");
 }
 
+/// A 3D field `(n0, n1, n2, 6)`: a constant diagonal metric diag(1, 4, 9),
+/// exact `U = √(x² + 4y² + 9z²)` from the centre.
+#[test]
+fn tensor_distance_3d_reads_six_components_per_voxel() {
+    let dir = TempDir::new().unwrap();
+    let (t, out, labels) = (
+        path(&dir, "t3.npy"),
+        path(&dir, "u3.npy"),
+        path(&dir, "l3.npy"),
+    );
+    let m = [1.0, 0.0, 0.0, 4.0, 0.0, 9.0];
+    let field = ArrayD::from_shape_fn(IxDyn(&[17, 17, 17, 6]), |ix| m[ix[3]]);
+    write_npy(&t, &field).unwrap();
+    let (u, _) = distance_ok(
+        &[
+            "distance",
+            "--tensor",
+            s(&t),
+            "--source",
+            "8,8,8",
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ],
+        &out,
+        &labels,
+    );
+    assert_eq!(u.shape(), &[17, 17, 17]);
+    let mut worst: f64 = 0.0;
+    for (ix, v) in u.indexed_iter() {
+        let (a, b, c) = (ix[0] as f64 - 8.0, ix[1] as f64 - 8.0, ix[2] as f64 - 8.0);
+        let exact = (a * a + 4.0 * b * b + 9.0 * c * c).sqrt();
+        if exact >= 4.0 {
+            worst = worst.max((v - exact).abs() / exact);
+        }
+    }
+    assert!(worst < 0.05, "relative max error {worst}");
+}
+
 #[test]
 fn bad_tensor_files_exit_non_zero_naming_the_first_bad_cell() {
     let dir = TempDir::new().unwrap();

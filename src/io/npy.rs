@@ -19,8 +19,15 @@ use super::{ArrayData, DType, Format, IoError, Limits};
 /// The first six bytes of every `.npy` file.
 pub const MAGIC: &[u8] = b"\x93NUMPY";
 
-/// Most axes a decoded array may have.
+/// Most axes a decoded array may have (a 2D or 3D grid)...
 const MAX_NDIM: usize = 3;
+
+/// ...or one more when the last one holds the components of a symmetric
+/// tensor per cell: 3 (`m11, m12, m22`, 2D) or 6 (`m11, m12, m13, m22, m23,
+/// m33`, 3D). A 3D tensor field is an array of shape `(n0, n1, n2, 6)`.
+fn tensor_components_axis(shape: &[usize]) -> bool {
+    shape.len() == MAX_NDIM + 1 && matches!(shape[MAX_NDIM], 3 | 6)
+}
 
 fn corrupt(reason: impl Into<String>) -> IoError {
     IoError::corrupt(Format::Npy, reason)
@@ -401,9 +408,9 @@ pub(crate) fn decode(bytes: &[u8], limits: &Limits) -> Result<ArrayData, IoError
             "0-dimensional array (a scalar); 1 to 3 axes are supported",
         ));
     }
-    if shape.len() > MAX_NDIM {
+    if shape.len() > MAX_NDIM && !tensor_components_axis(shape) {
         return Err(unsupported(format!(
-            "{} axes (shape {shape:?}); 1 to {MAX_NDIM} are supported",
+            "{} axes (shape {shape:?}); 1 to {MAX_NDIM} are supported, or 4 with a trailing tensor axis of 3 or 6 components",
             shape.len()
         )));
     }
@@ -617,6 +624,23 @@ mod tests {
         for (dict, needle) in cases {
             let err = decode(&npy(dict, &[0; 16]), &Limits::default()).expect_err(dict);
             assert!(err.to_string().contains(needle), "{dict}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_fourth_axis_is_only_a_tensor_component_axis() {
+        for (shape, ok) in [
+            (vec![2, 3, 4, 6], true),
+            (vec![2, 3, 4, 3], true),
+            (vec![2, 3, 4, 2], false),
+            (vec![2, 3, 4, 5, 6], false),
+        ] {
+            let a = ArrayData::F64(ArrayD::zeros(shape.clone()));
+            let bytes = encode_npy(&a).expect("encodes");
+            match decode(&bytes, &Limits::default()) {
+                Ok(b) => assert!(ok && b.shape() == shape.as_slice(), "{shape:?}"),
+                Err(e) => assert!(!ok && e.to_string().contains("axes"), "{shape:?}: {e}"),
+            }
         }
     }
 
