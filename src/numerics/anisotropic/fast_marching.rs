@@ -563,11 +563,12 @@ impl Ctx<'_> {
         if fp.is_none() {
             return solve_terms(&mut terms[..nt], 1.0);
         }
-        let rhs = if fixed_part < 0.5 {
-            1.0 - fixed_part
-        } else {
-            1.0
-        };
+        // The hidden terms keep their exact share `ρ ⟨∇U_0, e⟩²` of the
+        // right-hand side however large it is: along the axis of a needle
+        // (ratio 100, the cells of the grid row nearest to the source) it is
+        // most of it, and dropping it (the former cut-off at 1/2) made the
+        // axis-aligned constant metric 40 % wrong instead of exact.
+        let rhs = (1.0 - fixed_part).max(1e-12);
         // Factored: a neighbour whose own value lies above the root is not
         // upwind (its shifted `b` is below `a`); drop it and solve again, as
         // the plain scheme drops the terms with `b ≥ U`.
