@@ -341,8 +341,16 @@ impl HeatSolver {
                 f64::INFINITY
             };
         }
+        // One source: every reached vertex is its own (no ordering needed).
+        let labels = if sources.len() == 1 {
+            phi.iter()
+                .map(|p| if p.is_finite() { 0 } else { -1 })
+                .collect()
+        } else {
+            self.labels(mesh, sources, &phi)
+        };
         let mut out = MeshDistance {
-            labels: self.labels(mesh, sources, &phi),
+            labels,
             distance: phi,
         };
         for v in 0..n {
