@@ -17,6 +17,8 @@ import potpourri3d as pp3d
 
 
 def errors(V, d):
+    if not np.allclose(np.linalg.norm(V, axis=1), 1.0, atol=1e-6):
+        return float("nan"), float("nan")  # not a unit sphere: no closed form
     p0 = V[0] / np.linalg.norm(V[0])
     u = V / np.linalg.norm(V, axis=1)[:, None]
     exact = np.arctan2(np.linalg.norm(np.cross(p0, u), axis=1), u @ p0)

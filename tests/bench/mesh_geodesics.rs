@@ -6,7 +6,12 @@
 //! cargo bench --bench mesh_geodesics -- fmm 7       # fast marching time, error
 //! cargo bench --bench mesh_geodesics -- dijkstra 7
 //! cargo bench --bench mesh_geodesics -- dump 7 /tmp/ico7.obj   # the mesh for the Python peers
+//! cargo bench --bench mesh_geodesics -- exact 6     # exact window propagation
+//! cargo bench --bench mesh_geodesics -- heat /tmp/dragon.ply   # any mesh file (source: vertex 0)
 //! ```
+//!
+//! With a mesh file instead of a level the errors are left out (no closed
+//! form); the heat and fast-marching answers are compared with each other.
 //!
 //! One case per process so that the peak resident memory (`VmHWM`) is the
 //! case's own. Prints one JSON line. `GEODEX_THREADS=1` (default) runs faer
@@ -54,7 +59,8 @@ fn main() {
         .filter(|a| a != "--bench")
         .collect();
     let case = args.first().map_or("heat", String::as_str);
-    let level: u32 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(6);
+    let which = args.get(1).map_or("6", String::as_str);
+    let level: Option<u32> = which.parse().ok();
     let threads = std::env::var("GEODEX_THREADS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -64,8 +70,45 @@ fn main() {
     } else {
         faer::set_global_parallelism(faer::Par::rayon(threads));
     }
-    let mesh = icosphere(level, 1.0);
-    let topo = Topology::new(&mesh);
+    let (mesh, topo) = match level {
+        Some(level) => {
+            let mesh = icosphere(level, 1.0);
+            let topo = Topology::new(&mesh);
+            (mesh, topo)
+        }
+        None => {
+            let bytes = match std::fs::read(which) {
+                Ok(b) => b,
+                Err(e) => {
+                    eprintln!("{which}: {e}");
+                    return;
+                }
+            };
+            let format = geodex::io::mesh::MeshFormat::from_name(which);
+            match geodex::io::mesh::read_mesh(
+                &bytes,
+                format,
+                &geodex::io::mesh::MeshLimits::default(),
+            ) {
+                Ok(l) => {
+                    eprintln!("{which}: {:?}", l.report);
+                    (l.mesh, l.topology)
+                }
+                Err(e) => {
+                    eprintln!("{which}: {e}");
+                    return;
+                }
+            }
+        }
+    };
+    let sphere = level.is_some();
+    let errors = |mesh: &geodex::numerics::mesh::TriMesh, d: &[f64]| {
+        if sphere {
+            errors(mesh, d)
+        } else {
+            (f64::NAN, f64::NAN)
+        }
+    };
     let n = mesh.num_vertices();
     let control = Control::new();
     let src = [SurfacePoint::Vertex(0)];
@@ -79,10 +122,12 @@ fn main() {
         }
         "heat" => {
             let t0 = Instant::now();
-            let Ok(solver) = HeatSolver::new(&mesh, &topo, &HeatOptions::default(), &control)
-            else {
-                eprintln!("factorisation failed");
-                return;
+            let solver = match HeatSolver::new(&mesh, &topo, &HeatOptions::default(), &control) {
+                Ok(s) => s,
+                Err(e) => {
+                    eprintln!("factorisation failed: {e}");
+                    return;
+                }
             };
             let factor = t0.elapsed().as_secs_f64();
             let mut best = f64::INFINITY;
@@ -100,6 +145,27 @@ fn main() {
             println!(
                 "{{\"case\":\"heat\",\"vertices\":{n},\"threads\":{threads},\"factor_s\":{factor:.4},\"query_s\":{best:.4},\"t\":{:.3e},\"mean_rel_err\":{mean:.5},\"max_abs_err\":{max:.5},\"peak_mib\":{:.1}}}",
                 solver.t(),
+                peak_mib()
+            );
+        }
+        "exact" => {
+            let t = Instant::now();
+            let r = geodex::numerics::mesh::exact::exact_distance_with_stats(
+                &mesh,
+                &topo,
+                &src,
+                f64::INFINITY,
+                &control,
+            );
+            let Ok((r, stats)) = r else {
+                eprintln!("solve failed");
+                return;
+            };
+            let secs = t.elapsed().as_secs_f64();
+            let (mean, max) = errors(&mesh, &r.distance);
+            println!(
+                "{{\"case\":\"exact\",\"vertices\":{n},\"solve_s\":{secs:.4},\"windows_per_vertex\":{:.1},\"mean_rel_err\":{mean:.3e},\"max_abs_err\":{max:.3e},\"peak_mib\":{:.1}}}",
+                stats.windows_propagated as f64 / n as f64,
                 peak_mib()
             );
         }

@@ -10,7 +10,8 @@
 //! 3. Solve the Poisson equation `L φ = −∇·X` (integrated divergence
 //!    `(∇·X)_i = ½ Σ_f cot θ₁ (e₁·X) + cot θ₂ (e₂·X)`), with the right-hand
 //!    side projected to zero mean per connected component and `L + εM`
-//!    (`ε = 10⁻⁹ / h²`) factored so that the system is definite;
+//!    (`ε = 10⁻⁹ / h²`) plus one pinned vertex per component factored so
+//!    that the system is definite;
 //!    `φ` is shifted per component so that its smallest value at the
 //!    sources is 0.
 //!
@@ -171,6 +172,22 @@ impl HeatSolver {
             return Err(MeshSolveError::Cancelled);
         }
         let eps = 1e-9 / (h * h);
+        // One pinned vertex per component: `L + εM + P`, `P = Σ_roots
+        // (M_r / h²) e_r e_rᵀ`. For a right-hand side of zero sum per
+        // component, `(L + P) (φ* − φ*_r 1) = b` exactly, so the pin only
+        // fixes the free constant (removed by the shift below), and every
+        // component's block is definite without relying on `εM` alone,
+        // which rounding defeats on large scanned meshes with many
+        // components (the Stanford dragon: non-positive pivot).
+        let mut pin = vec![0.0; n];
+        let mut pinned = vec![false; topo.components];
+        for v in 0..n {
+            let c = topo.component[v] as usize;
+            if !pinned[c] {
+                pinned[c] = true;
+                pin[v] = mass[v] / (h * h);
+            }
+        }
         let build = |diag: &dyn Fn(usize) -> f64, s: f64| {
             let trip: Vec<Triplet<usize, usize, f64>> = lap
                 .iter()
@@ -181,7 +198,7 @@ impl HeatSolver {
                 .map_err(|e| numerical("assembly", e))
         };
         let a = build(&|i| mass[i], t)?;
-        let b = build(&|i| eps * mass[i], 1.0)?;
+        let b = build(&|i| eps * mass[i] + pin[i], 1.0)?;
         let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
             .map_err(|e| numerical("symbolic factorisation", e))?;
         control.report(0.2);
@@ -341,8 +358,16 @@ impl HeatSolver {
                 f64::INFINITY
             };
         }
+        // One source: every reached vertex is its own (no ordering needed).
+        let labels = if sources.len() == 1 {
+            phi.iter()
+                .map(|p| if p.is_finite() { 0 } else { -1 })
+                .collect()
+        } else {
+            self.labels(mesh, sources, &phi)
+        };
         let mut out = MeshDistance {
-            labels: self.labels(mesh, sources, &phi),
+            labels,
             distance: phi,
         };
         for v in 0..n {

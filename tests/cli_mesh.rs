@@ -1,0 +1,242 @@
+//! `geodex mesh-distance` end to end: the built binary on mesh files in a
+//! temporary directory, D.npy / L.npy compared with the library's
+//! `mesh_distance` on the same (parsed) mesh, and one clear stderr line for
+//! each kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use geodex::io::mesh::write::write_obj;
+use geodex::io::mesh::{read_mesh, MeshFormat, MeshLimits};
+use geodex::numerics::mesh::shapes::icosphere;
+use geodex::numerics::mesh::solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
+use geodex::numerics::mesh::SurfacePoint;
+use geodex::numerics::Control;
+use ndarray::Array1;
+use ndarray_npy::read_npy;
+use tempfile::TempDir;
+
+fn geodex(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .arg("mesh-distance")
+        .args(args)
+        .output()
+        .expect("the geodex binary runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// An icosphere (642 vertices) written as OBJ; returns its path and bytes.
+fn sphere_obj(dir: &TempDir) -> (PathBuf, Vec<u8>) {
+    let bytes = write_obj(&icosphere(3, 1.0));
+    let p = dir.path().join("sphere.obj");
+    std::fs::write(&p, &bytes).unwrap();
+    (p, bytes)
+}
+
+#[test]
+fn every_method_writes_the_library_result() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, bytes) = sphere_obj(&dir);
+    let loaded = read_mesh(&bytes, Some(MeshFormat::Obj), &MeshLimits::default()).unwrap();
+    let sources = [
+        SurfacePoint::Vertex(7),
+        SurfacePoint::Face {
+            face: 300,
+            bary: [0.2, 0.3, 0.5],
+        },
+    ];
+    for (name, method) in [
+        ("fast-marching", MeshMethod::FastMarching),
+        ("heat", MeshMethod::Heat),
+        ("exact", MeshMethod::Exact),
+        ("dijkstra", MeshMethod::Dijkstra),
+    ] {
+        let out = dir.path().join(format!("d-{name}.npy"));
+        let labels = dir.path().join(format!("l-{name}.npy"));
+        let o = geodex(&[
+            "--mesh",
+            s(&mesh_path),
+            "--source-vertex",
+            "7",
+            "--source-face",
+            "300,0.2,0.3,0.5",
+            "--method",
+            name,
+            "--out",
+            s(&out),
+            "--labels",
+            s(&labels),
+        ]);
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("642 vertices"), "{name}: {err}");
+        let d: Array1<f64> = read_npy(&out).unwrap();
+        let l: Array1<i32> = read_npy(&labels).unwrap();
+        let expected = mesh_distance(
+            &loaded.mesh,
+            &loaded.topology,
+            &sources,
+            &MeshDistanceOptions {
+                method,
+                ..Default::default()
+            },
+            None,
+            &Control::new(),
+        )
+        .unwrap();
+        assert_eq!(d.len(), 642, "{name}");
+        for (v, (a, b)) in d.iter().zip(&expected.distance).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-12 * (1.0 + b.abs()),
+                "{name} {v}: {a} vs {b}"
+            );
+        }
+        assert_eq!(l.to_vec(), expected.labels, "{name}");
+        assert_eq!(d[7], 0.0, "{name}");
+        assert!(
+            l.iter().any(|&x| x == 0) && l.iter().any(|&x| x == 1),
+            "{name}"
+        );
+        assert!(d.iter().all(|x| x.is_finite() && *x < 3.2), "{name}");
+    }
+}
+
+#[test]
+fn max_distance_leaves_far_vertices_infinite() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, _) = sphere_obj(&dir);
+    let out = dir.path().join("d.npy");
+    let o = geodex(&[
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "0",
+        "--max-distance",
+        "1.0",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d: Array1<f64> = read_npy(&out).unwrap();
+    assert!(d.iter().any(|x| x.is_infinite()));
+    assert!(d.iter().filter(|x| x.is_finite()).all(|&x| x <= 1.0));
+}
+
+/// Runs a command that must fail and returns its single stderr line.
+fn one_error_line(args: &[&str]) -> String {
+    let o = geodex(args);
+    assert!(!o.status.success(), "{args:?} should fail");
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    // A successful parse reports the mesh first; the error is the last line.
+    let lines: Vec<&str> = err.lines().filter(|l| !l.contains(" vertices (")).collect();
+    assert_eq!(lines.len(), 1, "{args:?}: stderr is not one line: {err:?}");
+    assert!(lines[0].starts_with("geodex: "), "{err}");
+    lines[0].to_string()
+}
+
+#[test]
+fn bad_inputs_exit_non_zero_with_one_line_naming_the_problem() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, _) = sphere_obj(&dir);
+    let m = s(&mesh_path);
+    let out = dir.path().join("d.npy");
+    let o = s(&out);
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, b"").unwrap();
+    let bad_index = dir.path().join("bad.obj");
+    std::fs::write(&bad_index, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let nan = dir.path().join("nan.obj");
+    std::fs::write(&nan, b"v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let missing = dir.path().join("missing.obj");
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        (
+            vec!["--mesh", s(&missing), "--source-vertex", "0", "--out", o],
+            &["--mesh", "missing.obj"],
+        ),
+        (
+            vec!["--mesh", s(&empty), "--source-vertex", "0", "--out", o],
+            &["--mesh", "empty.obj"],
+        ),
+        (
+            vec!["--mesh", s(&bad_index), "--source-vertex", "0", "--out", o],
+            &["--mesh", "bad.obj"],
+        ),
+        (
+            vec!["--mesh", s(&nan), "--source-vertex", "0", "--out", o],
+            &["--mesh", "nan.obj"],
+        ),
+        (vec!["--mesh", m, "--out", o], &["--source-vertex"]),
+        (
+            vec!["--mesh", m, "--source-vertex", "642", "--out", o],
+            &["sources[0]"],
+        ),
+        (
+            vec!["--mesh", m, "--source-face", "3,0.5,0.5", "--out", o],
+            &["--source-face 1", "F,B0,B1,B2"],
+        ),
+        (
+            vec![
+                "--mesh",
+                m,
+                "--source-face",
+                "99999,0.2,0.3,0.5",
+                "--out",
+                o,
+            ],
+            &["sources[0]"],
+        ),
+        (
+            vec![
+                "--mesh",
+                m,
+                "--source-vertex",
+                "0",
+                "--method",
+                "magic",
+                "--out",
+                o,
+            ],
+            &["magic"],
+        ),
+        (
+            vec![
+                "--mesh",
+                m,
+                "--source-vertex",
+                "0",
+                "--heat-m",
+                "-1",
+                "--method",
+                "heat",
+                "--out",
+                o,
+            ],
+            &["m"],
+        ),
+        (
+            vec![
+                "--mesh",
+                m,
+                "--source-vertex",
+                "0",
+                "--out",
+                "/nonexistent-dir/d.npy",
+            ],
+            &["--out"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let line = one_error_line(&args);
+        for n in needles {
+            assert!(line.contains(n), "{args:?}: {line:?} lacks {n:?}");
+        }
+    }
+    assert!(!out.exists(), "no output is written on failure");
+}
