@@ -180,7 +180,16 @@ pub(super) fn solve(
                 };
                 factor[index] = Some(fp);
                 let mut any = false;
-                for cell in cells_near(grid, p3, options.source_radius) {
+                // The exact local value reaches as far as the widest offset of
+                // the source cell's stencil (half of it, at least
+                // `source_radius`): closer cells have stencils that straddle
+                // the source, where the factored update is not exact (a 30°
+                // needle of ratio 100 had 105 % error at 128² with 1.5 cells,
+                // 0.9 % with 4).
+                let radius = options
+                    .source_radius
+                    .max(0.5 * stencil_reach(grid, st, near));
+                for cell in cells_near(grid, p3, radius) {
                     let i = grid.linear(cell);
                     let x = cell.map(|c| c as f64);
                     if metric.is_wall(i) || crosses_wall(grid, problem, p3, x) {
@@ -623,6 +632,23 @@ fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
         .map_or(-1, |p| p.label);
     let min_a = t[..used].iter().map(|p| p.a).fold(f64::INFINITY, f64::min);
     Some((root, label, min_a))
+}
+
+/// Length (index units) of the longest offset `e_k` with a present
+/// neighbour in the stencil of cell `i`.
+fn stencil_reach(grid: &Grid, st: &Stencils, i: usize) -> f64 {
+    let x = grid.unravel(i);
+    st.nb[i * 2 * st.k..(i + 1) * 2 * st.k]
+        .iter()
+        .filter(|&&j| j != NONE)
+        .map(|&j| {
+            let y = grid.unravel(j as usize);
+            (0..3)
+                .map(|a| (y[a] as f64 - x[a] as f64).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max)
 }
 
 /// Cells within `radius` (index units) of `p`, plus the `2^d` cells around it.

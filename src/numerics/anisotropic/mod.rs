@@ -64,8 +64,11 @@ pub struct TensorOptions {
     /// Additive source factoring around point sources with the metric of the
     /// source cell. Default: true.
     pub factoring: bool,
-    /// Radius, in cells, around a point source inside which cells receive the
-    /// exact local value `‖x − p‖_{M(p)}`. Default: 1.5.
+    /// Smallest radius, in cells, around a point source inside which cells
+    /// receive the exact local value `‖x − p‖_{M(p)}`; the radius used is the
+    /// larger of this and half the longest stencil offset of the source cell
+    /// (a needle of anisotropy 100 has offsets ~10 cells long, whose
+    /// stencils straddle the source). Default: 1.5.
     pub source_radius: f64,
     /// Early stopping.
     pub stop: StopRules,
