@@ -390,3 +390,155 @@ fn edt_skeleton_and_plan_through_their_requests() {
     assert_eq!(path[0], serde_json::json!([30.0, 5.0]));
     assert_eq!(path[path.len() - 1], serde_json::json!([30.0, 55.0]));
 }
+
+/// 26-connected components of the cells of `m` (shape `s`).
+fn components_26(m: &[bool], s: [usize; 3]) -> usize {
+    let idx = |i: usize, j: usize, k: usize| (i * s[1] + j) * s[2] + k;
+    let mut seen = vec![false; m.len()];
+    let mut count = 0;
+    for start in 0..m.len() {
+        if !m[start] || seen[start] {
+            continue;
+        }
+        count += 1;
+        seen[start] = true;
+        let mut stack = vec![start];
+        while let Some(c) = stack.pop() {
+            let (i, j, k) = (c / (s[1] * s[2]), (c / s[2]) % s[1], c % s[2]);
+            for di in -1isize..=1 {
+                for dj in -1isize..=1 {
+                    for dk in -1isize..=1 {
+                        let (a, b, e) = (i as isize + di, j as isize + dj, k as isize + dk);
+                        if a < 0 || b < 0 || e < 0 {
+                            continue;
+                        }
+                        let (a, b, e) = (a as usize, b as usize, e as usize);
+                        if a >= s[0] || b >= s[1] || e >= s[2] {
+                            continue;
+                        }
+                        let n = idx(a, b, e);
+                        if m[n] && !seen[n] {
+                            seen[n] = true;
+                            stack.push(n);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    count
+}
+
+/// Skeleton cells whose 26 neighbours are all skeleton cells (a thick part).
+fn full_cells(m: &[bool], s: [usize; 3]) -> usize {
+    let idx = |i: usize, j: usize, k: usize| (i * s[1] + j) * s[2] + k;
+    let mut n = 0;
+    for i in 1..s[0] - 1 {
+        for j in 1..s[1] - 1 {
+            for k in 1..s[2] - 1 {
+                let all =
+                    (0..27).all(|p| m[idx(i + p / 9 - 1, j + (p / 3) % 3 - 1, k + p % 3 - 1)]);
+                n += usize::from(all);
+            }
+        }
+    }
+    n
+}
+
+#[test]
+fn skeleton_3d_of_a_box_is_a_thin_connected_medial_surface() {
+    use geodex::numerics::skeleton::{medial_axis, SkeletonOptions};
+    use geodex::numerics::Grid;
+    // Box of 24 x 18 x 9 cells (index ranges below) in a 28 x 22 x 13 grid.
+    let s = [28usize, 22, 13];
+    let (lo, hi) = ([2usize, 2, 2], [25usize, 19, 10]);
+    let inside = |i: usize, j: usize, k: usize| {
+        (lo[0]..=hi[0]).contains(&i) && (lo[1]..=hi[1]).contains(&j) && (lo[2]..=hi[2]).contains(&k)
+    };
+    let mut mask = vec![false; s[0] * s[1] * s[2]];
+    for i in 0..s[0] {
+        for j in 0..s[1] {
+            for k in 0..s[2] {
+                mask[(i * s[1] + j) * s[2] + k] = inside(i, j, k);
+            }
+        }
+    }
+    let grid = Grid::unit(&s).unwrap();
+    let sk = medial_axis(&grid, &mask, &SkeletonOptions::default(), &Control::new()).unwrap();
+    let m = &sk.mask;
+    let cells: Vec<usize> = (0..m.len()).filter(|&c| m[c]).collect();
+    assert!(cells.len() > 100, "{} skeleton cells", cells.len());
+    assert_eq!(components_26(m, s), 1);
+    assert_eq!(full_cells(m, s), 0);
+    // Within one cell of the analytic medial surface: the two nearest faces
+    // (distances from the cell centre to the box faces, which lie half a cell
+    // outside the extreme cells) are at distances differing by at most
+    // sqrt(2) (one cell across the sheet between adjacent faces, 0.7 cell
+    // between opposite faces).
+    let mut worst = 0.0f64;
+    for &c in &cells {
+        let p = [c / (s[1] * s[2]), (c / s[2]) % s[1], c % s[2]];
+        assert!(inside(p[0], p[1], p[2]));
+        let mut d: Vec<f64> = (0..3)
+            .flat_map(|a| {
+                [
+                    p[a] as f64 - lo[a] as f64 + 0.5,
+                    hi[a] as f64 - p[a] as f64 + 0.5,
+                ]
+            })
+            .collect();
+        d.sort_by(f64::total_cmp);
+        worst = worst.max(d[1] - d[0]);
+    }
+    assert!(
+        worst <= 2f64.sqrt() + 1e-9,
+        "farthest cell: face gap {worst}"
+    );
+    // A sheet, one cell thin: the box is thinnest along axis 2, so the middle
+    // of the medial surface is the sheet k = 6 (between the faces at 1.5 and
+    // 10.5); above each (i, j) well inside it there is exactly one cell.
+    for i in lo[0] + 7..=hi[0] - 7 {
+        for j in lo[1] + 7..=hi[1] - 7 {
+            let column: Vec<usize> = (0..s[2])
+                .filter(|&k| m[(i * s[1] + j) * s[2] + k])
+                .collect();
+            assert_eq!(column, vec![6], "column ({i}, {j})");
+        }
+    }
+}
+
+#[test]
+fn skeleton_3d_of_a_cylinder_is_its_axis_in_the_middle() {
+    use geodex::numerics::skeleton::{medial_axis, SkeletonOptions};
+    use geodex::numerics::Grid;
+    // Cylinder of radius 6.5 around the line (j, k) = (10, 10), i in 2..=33.
+    let s = [36usize, 21, 21];
+    let inside = |i: usize, j: usize, k: usize| {
+        let (y, z) = (j as f64 - 10.0, k as f64 - 10.0);
+        (2..=33).contains(&i) && y * y + z * z <= 6.5 * 6.5
+    };
+    let mut mask = vec![false; s[0] * s[1] * s[2]];
+    for i in 0..s[0] {
+        for j in 0..s[1] {
+            for k in 0..s[2] {
+                mask[(i * s[1] + j) * s[2] + k] = inside(i, j, k);
+            }
+        }
+    }
+    let grid = Grid::unit(&s).unwrap();
+    let sk = medial_axis(&grid, &mask, &SkeletonOptions::default(), &Control::new()).unwrap();
+    let m = &sk.mask;
+    assert_eq!(components_26(m, s), 1);
+    assert_eq!(full_cells(m, s), 0);
+    // Away from the end caps (more than the radius + 2 cells), each cross
+    // section holds one skeleton cell, on the axis, with radius about 7.
+    for i in 11..=24 {
+        let section: Vec<(usize, usize)> = (0..s[1] * s[2])
+            .filter(|&r| m[i * s[1] * s[2] + r])
+            .map(|r| (r / s[2], r % s[2]))
+            .collect();
+        assert_eq!(section, vec![(10, 10)], "section {i}");
+        let r = sk.radius[(i * s[1] + 10) * s[2] + 10];
+        assert!((6.5..=7.5).contains(&r), "radius {r}");
+    }
+}

@@ -42,7 +42,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use ndarray::{ArrayViewMut2, Axis};
+use ndarray::{s, ArrayViewMut2, ArrayViewMut3, Axis};
 use rayon::prelude::*;
 
 use super::{Control, Grid};
@@ -294,29 +294,95 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
 ) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
     let shape = grid.shape3();
     let h = grid.spacing3();
-    let axes = active_axes(shape);
+    // The contiguous axis (the last active one) goes first: with no distance
+    // yet, its pass is the distance to the two cells that bound each run of
+    // equal labels, computed without an envelope.
+    let mut axes = active_axes(shape);
+    axes.rotate_right(1);
     let n = grid.len();
-    let mut d = vec![f64::INFINITY; n];
+    let mut d = vec![0.0f64; n];
     let mut feat = features.then(|| vec![NO_FEATURE; n]);
     for (k, &axis) in axes.iter().enumerate() {
         if control.is_cancelled() {
             return Err(EdtError::Cancelled);
         }
-        envelope_pass(
-            shape,
-            axis,
-            h[axis],
-            &mut d,
-            feat.as_deref_mut(),
-            Some(labels),
-            control,
-        );
+        if k == 0 {
+            run_pass(shape[axis], h[axis], &mut d, feat.as_deref_mut(), labels);
+        } else {
+            envelope_pass(
+                shape,
+                axis,
+                h[axis],
+                &mut d,
+                feat.as_deref_mut(),
+                Some(labels),
+                control,
+            );
+        }
         control.report((k + 1) as f64 / axes.len() as f64);
     }
     if control.is_cancelled() {
         return Err(EdtError::Cancelled);
     }
     Ok((d, feat))
+}
+
+/// First pass of the multi-label transform along the contiguous axis (lines
+/// of length `n`): on each run `[s, e)` of equal labels, the cell `q` gets
+/// `(h (q - b))²` for the nearer of the bounding cells `b = s - 1` and
+/// `b = e` that exist (`+inf` when the line holds one label).
+fn run_pass<L: Copy + PartialEq + Send + Sync>(
+    n: usize,
+    h: f64,
+    d: &mut [f64],
+    feat: Option<&mut [u32]>,
+    labels: &[L],
+) {
+    let line = |li: usize, out: &mut [f64], mut fout: Option<&mut [u32]>, lab: &[L]| {
+        let base = li * n;
+        let mut s = 0;
+        while s < n {
+            let mut e = s + 1;
+            while e < n && lab[e] == lab[s] {
+                e += 1;
+            }
+            for q in s..e {
+                let left = (s > 0).then(|| q - (s - 1));
+                let right = (e < n).then(|| e - q);
+                let (dist, b) = match (left, right) {
+                    (Some(l), Some(r)) if r < l => (r, e),
+                    (Some(l), _) => (l, s - 1),
+                    (None, Some(r)) => (r, e),
+                    (None, None) => {
+                        out[q] = f64::INFINITY;
+                        if let Some(f) = fout.as_deref_mut() {
+                            f[q] = NO_FEATURE;
+                        }
+                        continue;
+                    }
+                };
+                let x = dist as f64 * h;
+                out[q] = x * x;
+                if let Some(f) = fout.as_deref_mut() {
+                    f[q] = (base + b) as u32;
+                }
+            }
+            s = e;
+        }
+    };
+    match feat {
+        None => d
+            .par_chunks_mut(n)
+            .zip(labels.par_chunks(n))
+            .enumerate()
+            .for_each(|(li, (out, lab))| line(li, out, None, lab)),
+        Some(f) => d
+            .par_chunks_mut(n)
+            .zip(f.par_chunks_mut(n))
+            .zip(labels.par_chunks(n))
+            .enumerate()
+            .for_each(|(li, ((out, fo), lab))| line(li, out, Some(fo), lab)),
+    }
 }
 
 /// First pass of the binary transform along an axis whose lines are the
@@ -426,27 +492,120 @@ fn block_width(width: usize) -> usize {
 }
 
 /// Per-task scratch space of the envelope passes.
-#[derive(Default)]
-struct Scratch {
-    /// Site positions along the line.
-    pos: Vec<u32>,
-    /// Site heights `f(p)` (squared distances).
-    val: Vec<f64>,
-    /// Site features.
-    sfeat: Vec<u32>,
-    /// `f(p) / h² + p²`, the parabola's constant in the intersection formula.
-    a: Vec<f64>,
-    /// Envelope: site indices.
-    v: Vec<u32>,
-    /// Envelope: left end of each parabola's interval.
-    z: Vec<f64>,
-    /// Gathered lines (strided passes).
+struct Scratch<L> {
+    env: Envelope,
+    /// Gathered lines (strided passes), line `j` at `j * n..(j + 1) * n`.
     lines: Vec<f64>,
     flines: Vec<u32>,
+    labs: Vec<L>,
+}
+
+impl<L> Default for Scratch<L> {
+    fn default() -> Self {
+        Self {
+            env: Envelope::default(),
+            lines: Vec::new(),
+            flines: Vec::new(),
+            labs: Vec::new(),
+        }
+    }
+}
+
+/// The lower envelope of the parabolas `q ↦ (h (q - p))² + f(p)` of a line,
+/// built left to right (Felzenszwalb–Huttenlocher): a stack of sites with
+/// position `p`, height `f`, feature, `a = f / h² + p²` and the left end `z`
+/// of the interval where the site is lowest. The parabolas of sites `t < s`
+/// meet at `x = (a_s - a_t) / (2 (p_s - p_t))`; the top site is dropped while
+/// `x <= z_top`, tested as `a_s - a_t <= z_top · 2 (p_s - p_t)` (the factor is
+/// positive) so that only kept sites cost a division.
+#[derive(Default)]
+struct Envelope {
+    p: Vec<f64>,
+    f: Vec<f64>,
+    a: Vec<f64>,
+    z: Vec<f64>,
+    ft: Vec<u32>,
+}
+
+impl Envelope {
+    fn clear(&mut self) {
+        self.p.clear();
+        self.f.clear();
+        self.a.clear();
+        self.z.clear();
+        self.ft.clear();
+    }
+
+    /// Adds the site at `p` (greater than every site's) of height `f`.
+    #[inline]
+    fn push(&mut self, p: f64, f: f64, ft: u32, inv_h2: f64) {
+        let a = f * inv_h2 + p * p;
+        let mut z = f64::NEG_INFINITY;
+        while let (Some(&pt), Some(&at), Some(&zt)) = (self.p.last(), self.a.last(), self.z.last())
+        {
+            let num = a - at;
+            let den = 2.0 * (p - pt);
+            if num <= zt * den {
+                self.p.pop();
+                self.f.pop();
+                self.a.pop();
+                self.z.pop();
+                self.ft.pop();
+            } else {
+                z = num / den;
+                break;
+            }
+        }
+        self.p.push(p);
+        self.f.push(f);
+        self.a.push(a);
+        self.z.push(z);
+        self.ft.push(ft);
+    }
+
+    /// Writes `f(p) + (h (q - p))²` of the lowest site `p` at every `q` of
+    /// `[q0, q1)` (the same sum as the brute-force distance), and its feature.
+    fn write(&self, line: &mut [f64], fline: Option<&mut [u32]>, q0: usize, q1: usize, h: f64) {
+        let k = self.p.len();
+        if k == 0 {
+            line[q0..q1].fill(f64::INFINITY);
+            if let Some(f) = fline {
+                f[q0..q1].fill(NO_FEATURE);
+            }
+            return;
+        }
+        let mut j = 0;
+        match fline {
+            None => {
+                for (q, out) in line.iter_mut().enumerate().take(q1).skip(q0) {
+                    let qf = q as f64;
+                    while j + 1 < k && self.z[j + 1] < qf {
+                        j += 1;
+                    }
+                    let dq = (qf - self.p[j]) * h;
+                    *out = self.f[j] + dq * dq;
+                }
+            }
+            Some(fl) => {
+                for q in q0..q1 {
+                    let qf = q as f64;
+                    while j + 1 < k && self.z[j + 1] < qf {
+                        j += 1;
+                    }
+                    let dq = (qf - self.p[j]) * h;
+                    line[q] = self.f[j] + dq * dq;
+                    fl[q] = self.ft[j];
+                }
+            }
+        }
+    }
 }
 
 /// One pass along `axis`: replaces `f` on every line by
 /// `min_p h² (q - p)² + f(p)` (per run of equal labels in the multi-label case).
+/// Contiguous lines are transformed in place; strided ones are gathered
+/// [`GATHER`] at a time into a contiguous tile (row reads), transformed and
+/// scattered back, in parallel over (outer index, column chunk).
 fn envelope_pass<L: Copy + PartialEq + Send + Sync>(
     shape: [usize; 3],
     axis: usize,
@@ -458,16 +617,14 @@ fn envelope_pass<L: Copy + PartialEq + Send + Sync>(
 ) {
     let n = shape[axis];
     let stride: usize = shape[axis + 1..].iter().product();
-    let h2 = h * h;
     if stride == 1 {
-        // Contiguous lines: in place.
-        let run = |sc: &mut Scratch, li: usize, line: &mut [f64], fline: Option<&mut [u32]>| {
+        let run = |sc: &mut Scratch<L>, li: usize, line: &mut [f64], fline: Option<&mut [u32]>| {
             if control.is_cancelled() {
                 return;
             }
             let base = li * n;
             let lab = labels.map(|l| &l[base..base + n]);
-            line_envelope(sc, line, fline, lab, base, 1, h2);
+            line_envelope(&mut sc.env, line, fline, lab, base, 1, h);
         };
         match feat {
             None => d
@@ -484,107 +641,150 @@ fn envelope_pass<L: Copy + PartialEq + Send + Sync>(
         }
         return;
     }
-    let block = n * stride;
-    let run = |sc: &mut Scratch, bi: usize, bd: &mut [f64], mut bf: Option<&mut [u32]>| {
-        let mut lines = std::mem::take(&mut sc.lines);
-        let mut flines = std::mem::take(&mut sc.flines);
-        let mut lab: Vec<L> = Vec::with_capacity(if labels.is_some() { n } else { 0 });
-        lines.resize(GATHER * n, 0.0);
-        if bf.is_some() {
-            flines.resize(GATHER * n, NO_FEATURE);
+    let outer = d.len() / (n * stride);
+    let width = chunk_width(stride, outer);
+    let Ok(mut dv) = ArrayViewMut3::from_shape((outer, n, stride), d) else {
+        return;
+    };
+    // One chunk: columns `c0..c0 + w` of the `(n, stride)` plane `o`.
+    let tile = |sc: &mut Scratch<L>,
+                o: usize,
+                c0: usize,
+                mut dc: ArrayViewMut2<'_, f64>,
+                mut fc: Option<ArrayViewMut2<'_, u32>>| {
+        let w = dc.ncols();
+        let plane = o * n * stride;
+        let feats = fc.is_some();
+        sc.lines.resize(GATHER * n, 0.0);
+        if fc.is_some() {
+            sc.flines.resize(GATHER * n, NO_FEATURE);
         }
-        for i0 in (0..stride).step_by(GATHER) {
+        for t0 in (0..w).step_by(GATHER) {
             if control.is_cancelled() {
-                break;
+                return;
             }
-            let w = GATHER.min(stride - i0);
-            for k in 0..n {
-                let row = &bd[k * stride + i0..k * stride + i0 + w];
+            let tw = GATHER.min(w - t0);
+            let mut td = dc.slice_mut(s![.., t0..t0 + tw]);
+            let mut tf = fc.as_mut().map(|fc| fc.slice_mut(s![.., t0..t0 + tw]));
+            for (k, row) in td.rows().into_iter().enumerate() {
                 for (j, &v) in row.iter().enumerate() {
-                    lines[j * n + k] = v;
+                    sc.lines[j * n + k] = v;
                 }
             }
-            if let Some(bf) = bf.as_deref() {
-                for k in 0..n {
-                    let row = &bf[k * stride + i0..k * stride + i0 + w];
+            if let Some(tf) = tf.as_ref() {
+                for (k, row) in tf.rows().into_iter().enumerate() {
                     for (j, &v) in row.iter().enumerate() {
-                        flines[j * n + k] = v;
+                        sc.flines[j * n + k] = v;
                     }
                 }
             }
-            for j in 0..w {
-                let base = bi * block + i0 + j;
-                let line = &mut lines[j * n..(j + 1) * n];
-                let fline = bf.is_some().then(|| &mut flines[j * n..(j + 1) * n]);
-                match labels {
-                    None => line_envelope::<L>(sc, line, fline, None, base, stride, h2),
-                    Some(l) => {
-                        lab.clear();
-                        lab.extend((0..n).map(|k| l[base + k * stride]));
-                        line_envelope(sc, line, fline, Some(&lab), base, stride, h2);
-                    }
-                }
-            }
-            for k in 0..n {
-                let row = &mut bd[k * stride + i0..k * stride + i0 + w];
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v = lines[j * n + k];
-                }
-            }
-            if let Some(bf) = bf.as_deref_mut() {
+            if let Some(l) = labels {
+                let b = plane + c0 + t0;
+                sc.labs.clear();
+                sc.labs.resize(tw * n, l[b]);
                 for k in 0..n {
-                    let row = &mut bf[k * stride + i0..k * stride + i0 + w];
+                    let row = &l[b + k * stride..b + k * stride + tw];
+                    for (j, &v) in row.iter().enumerate() {
+                        sc.labs[j * n + k] = v;
+                    }
+                }
+            }
+            for j in 0..tw {
+                let base = plane + c0 + t0 + j;
+                let line = &mut sc.lines[j * n..(j + 1) * n];
+                let fline = feats.then(|| &mut sc.flines[j * n..(j + 1) * n]);
+                let lab = labels.is_some().then(|| &sc.labs[j * n..(j + 1) * n]);
+                line_envelope(&mut sc.env, line, fline, lab, base, stride, h);
+            }
+            for (k, mut row) in td.rows_mut().into_iter().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    *v = sc.lines[j * n + k];
+                }
+            }
+            if let Some(tf) = tf.as_mut() {
+                for (k, mut row) in tf.rows_mut().into_iter().enumerate() {
                     for (j, v) in row.iter_mut().enumerate() {
-                        *v = flines[j * n + k];
+                        *v = sc.flines[j * n + k];
                     }
                 }
             }
         }
-        sc.lines = lines;
-        sc.flines = flines;
     };
     match feat {
-        None => d
-            .par_chunks_mut(block)
+        None => dv
+            .axis_iter_mut(Axis(0))
+            .into_par_iter()
             .enumerate()
-            .for_each_init(Scratch::default, |sc, (bi, bd)| run(sc, bi, bd, None)),
-        Some(f) => d
-            .par_chunks_mut(block)
-            .zip(f.par_chunks_mut(block))
-            .enumerate()
-            .for_each_init(Scratch::default, |sc, (bi, (bd, bf))| {
-                run(sc, bi, bd, Some(bf))
+            .for_each(|(o, mut pd)| {
+                pd.axis_chunks_iter_mut(Axis(1), width)
+                    .into_par_iter()
+                    .enumerate()
+                    .for_each_init(Scratch::default, |sc, (c, dc)| {
+                        tile(sc, o, c * width, dc, None)
+                    })
             }),
+        Some(f) => {
+            let Ok(mut fv) = ArrayViewMut3::from_shape((outer, n, stride), f) else {
+                return;
+            };
+            dv.axis_iter_mut(Axis(0))
+                .into_par_iter()
+                .zip(fv.axis_iter_mut(Axis(0)).into_par_iter())
+                .enumerate()
+                .for_each(|(o, (mut pd, mut pf))| {
+                    pd.axis_chunks_iter_mut(Axis(1), width)
+                        .into_par_iter()
+                        .zip(pf.axis_chunks_iter_mut(Axis(1), width).into_par_iter())
+                        .enumerate()
+                        .for_each_init(Scratch::default, |sc, (c, (dc, fc))| {
+                            tile(sc, o, c * width, dc, Some(fc))
+                        })
+                })
+        }
     }
+}
+
+/// Columns per task of a strided pass: a multiple of [`GATHER`], with about
+/// four tasks per thread over the `outer` planes together.
+fn chunk_width(stride: usize, outer: usize) -> usize {
+    let tasks = 4 * rayon::current_num_threads().max(1);
+    let per_plane = tasks.div_ceil(outer.max(1)).max(1);
+    stride.div_ceil(per_plane).div_ceil(GATHER).max(1) * GATHER
 }
 
 /// The envelope on one line, in place. `base + k * stride` is the linear
 /// index of the line's cell `k` (the feature of a run's bounding cell).
 fn line_envelope<L: Copy + PartialEq>(
-    sc: &mut Scratch,
+    env: &mut Envelope,
     line: &mut [f64],
     mut fline: Option<&mut [u32]>,
     labels: Option<&[L]>,
     base: usize,
     stride: usize,
-    h2: f64,
+    h: f64,
 ) {
     let n = line.len();
+    let inv_h2 = 1.0 / (h * h);
     match labels {
         None => {
-            sc.pos.clear();
-            sc.val.clear();
-            sc.sfeat.clear();
-            for (k, &v) in line.iter().enumerate() {
-                if v.is_finite() {
-                    sc.pos.push(k as u32);
-                    sc.val.push(v);
-                    if let Some(f) = fline.as_deref() {
-                        sc.sfeat.push(f[k]);
+            env.clear();
+            match fline.as_deref() {
+                None => {
+                    for (k, &v) in line.iter().enumerate() {
+                        if v.is_finite() {
+                            env.push(k as f64, v, 0, inv_h2);
+                        }
+                    }
+                }
+                Some(f) => {
+                    for (k, (&v, &ft)) in line.iter().zip(f).enumerate() {
+                        if v.is_finite() {
+                            env.push(k as f64, v, ft, inv_h2);
+                        }
                     }
                 }
             }
-            evaluate(sc, line, fline, 0, n, h2);
+            env.write(line, fline, 0, n, h);
         }
         Some(lab) => {
             let mut s = 0;
@@ -593,105 +793,27 @@ fn line_envelope<L: Copy + PartialEq>(
                 while e < n && lab[e] == lab[s] {
                     e += 1;
                 }
-                sc.pos.clear();
-                sc.val.clear();
-                sc.sfeat.clear();
-                let feats = fline.is_some();
+                env.clear();
                 if s > 0 {
-                    sc.pos.push((s - 1) as u32);
-                    sc.val.push(0.0);
-                    if feats {
-                        sc.sfeat.push((base + (s - 1) * stride) as u32);
-                    }
+                    env.push(
+                        (s - 1) as f64,
+                        0.0,
+                        (base + (s - 1) * stride) as u32,
+                        inv_h2,
+                    );
                 }
                 for k in s..e {
                     if line[k].is_finite() {
-                        sc.pos.push(k as u32);
-                        sc.val.push(line[k]);
-                        if let Some(f) = fline.as_deref() {
-                            sc.sfeat.push(f[k]);
-                        }
+                        let ft = fline.as_deref().map_or(0, |f| f[k]);
+                        env.push(k as f64, line[k], ft, inv_h2);
                     }
                 }
                 if e < n {
-                    sc.pos.push(e as u32);
-                    sc.val.push(0.0);
-                    if feats {
-                        sc.sfeat.push((base + e * stride) as u32);
-                    }
+                    env.push(e as f64, 0.0, (base + e * stride) as u32, inv_h2);
                 }
-                evaluate(sc, line, fline.as_deref_mut(), s, e, h2);
+                env.write(line, fline.as_deref_mut(), s, e, h);
                 s = e;
             }
-        }
-    }
-}
-
-/// Lower envelope of the parabolas of the sites in `sc` (positions
-/// increasing), evaluated on `q` in `[q0, q1)` into `line` (and the winning
-/// site's feature into `fline`). The value written is `f(p) + (h (q - p))²`
-/// for the winning site `p`, the same sum as the brute-force distance.
-fn evaluate(
-    sc: &mut Scratch,
-    line: &mut [f64],
-    fline: Option<&mut [u32]>,
-    q0: usize,
-    q1: usize,
-    h2: f64,
-) {
-    let m = sc.pos.len();
-    if m == 0 {
-        line[q0..q1].fill(f64::INFINITY);
-        if let Some(f) = fline {
-            f[q0..q1].fill(NO_FEATURE);
-        }
-        return;
-    }
-    sc.a.clear();
-    sc.a.extend(sc.pos.iter().zip(&sc.val).map(|(&p, &f)| {
-        let p = f64::from(p);
-        f / h2 + p * p
-    }));
-    sc.v.clear();
-    sc.z.clear();
-    sc.v.push(0);
-    sc.z.push(f64::NEG_INFINITY);
-    for s in 1..m {
-        let qs = f64::from(sc.pos[s]);
-        let aq = sc.a[s];
-        loop {
-            let Some(&top) = sc.v.last() else {
-                sc.v.push(s as u32);
-                sc.z.push(f64::NEG_INFINITY);
-                break;
-            };
-            let t = top as usize;
-            let x = (aq - sc.a[t]) / (2.0 * (qs - f64::from(sc.pos[t])));
-            let zt = sc.z[sc.z.len() - 1];
-            if x <= zt {
-                sc.v.pop();
-                sc.z.pop();
-            } else {
-                sc.v.push(s as u32);
-                sc.z.push(x);
-                break;
-            }
-        }
-    }
-    let k = sc.v.len();
-    let h = h2.sqrt();
-    let mut j = 0;
-    let mut out_f = fline;
-    for q in q0..q1 {
-        let qf = q as f64;
-        while j + 1 < k && sc.z[j + 1] < qf {
-            j += 1;
-        }
-        let s = sc.v[j] as usize;
-        let dq = (qf - f64::from(sc.pos[s])) * h;
-        line[q] = sc.val[s] + dq * dq;
-        if let Some(f) = out_f.as_deref_mut() {
-            f[q] = sc.sfeat[s];
         }
     }
 }

@@ -91,7 +91,10 @@ impl Operation for GridEdtRequest {
         let started = Instant::now();
         let (out, feature_cells): (EdtOutput, usize) = match self.mode {
             EdtMode::Binary | EdtMode::Signed => {
-                let mask = mask_of(&input, "mask", &grid)?;
+                let mask = match direct_mask(&input.array, &grid) {
+                    Some(m) => m,
+                    None => mask_of(&input, "mask", &grid)?,
+                };
                 let count = mask.iter().filter(|&&m| m).count();
                 let out = if self.mode == EdtMode::Binary {
                     edt::edt(&grid, &mask, &options, control)
@@ -101,17 +104,25 @@ impl Operation for GridEdtRequest {
                 (out.map_err(|e| edt_error(e, "mask"))?, count)
             }
             EdtMode::Multilabel => {
-                let a = &input.array;
-                let mut labels = Vec::with_capacity(a.len());
-                for i in 0..a.len() {
-                    let v = a.get_f64(i).unwrap_or(f64::NAN);
-                    if v.is_nan() {
-                        return Err(OpError::invalid("mask", "a label image cannot hold NaN"));
+                let out = match narrow_labels(&input.array, &grid) {
+                    Some(labels) => edt::multilabel_edt(&grid, &labels, &options, control),
+                    None => {
+                        let a = &input.array;
+                        let mut labels = Vec::with_capacity(a.len());
+                        for i in 0..a.len() {
+                            let v = a.get_f64(i).unwrap_or(f64::NAN);
+                            if v.is_nan() {
+                                return Err(OpError::invalid(
+                                    "mask",
+                                    "a label image cannot hold NaN",
+                                ));
+                            }
+                            labels.push((v + 0.0).to_bits());
+                        }
+                        edt::multilabel_edt(&grid, &labels, &options, control)
                     }
-                    labels.push((v + 0.0).to_bits());
                 }
-                let out = edt::multilabel_edt(&grid, &labels, &options, control)
-                    .map_err(|e| edt_error(e, "mask"))?;
+                .map_err(|e| edt_error(e, "mask"))?;
                 (out, grid.len())
             }
         };
@@ -148,5 +159,44 @@ impl Operation for GridEdtRequest {
                 "seconds": seconds,
             }}),
         })
+    }
+}
+
+/// The mask of a boolean or integer dataset of the grid's shape in standard
+/// layout (non-zero is true), read straight from its slice; `None` sends the
+/// caller to the general checks of [`mask_of`].
+fn direct_mask(a: &ArrayData, grid: &crate::numerics::Grid) -> Option<Vec<bool>> {
+    if a.shape() != grid.shape() {
+        return None;
+    }
+    match a {
+        ArrayData::Bool(a) => Some(a.as_slice()?.to_vec()),
+        ArrayData::U8(a) => Some(a.as_slice()?.iter().map(|&v| v != 0).collect()),
+        ArrayData::U16(a) => Some(a.as_slice()?.iter().map(|&v| v != 0).collect()),
+        ArrayData::I32(a) => Some(a.as_slice()?.iter().map(|&v| v != 0).collect()),
+        ArrayData::I64(a) => Some(a.as_slice()?.iter().map(|&v| v != 0).collect()),
+        _ => None,
+    }
+}
+
+/// Integer labels of the grid's shape as `u32` (a bijection of every value
+/// that fits), read straight from the dataset's slice; `None` for floating
+/// point labels, 64-bit labels outside the `u32` range or a non-standard
+/// layout (the caller then keys labels by their `f64` bits).
+fn narrow_labels(a: &ArrayData, grid: &crate::numerics::Grid) -> Option<Vec<u32>> {
+    if a.shape() != grid.shape() {
+        return None;
+    }
+    match a {
+        ArrayData::Bool(a) => Some(a.as_slice()?.iter().map(|&v| u32::from(v)).collect()),
+        ArrayData::U8(a) => Some(a.as_slice()?.iter().map(|&v| u32::from(v)).collect()),
+        ArrayData::U16(a) => Some(a.as_slice()?.iter().map(|&v| u32::from(v)).collect()),
+        ArrayData::I32(a) => Some(a.as_slice()?.iter().map(|&v| v as u32).collect()),
+        ArrayData::I64(a) => a
+            .as_slice()?
+            .iter()
+            .map(|&v| u32::try_from(v).ok())
+            .collect(),
+        _ => None,
     }
 }

@@ -11,7 +11,9 @@ geodex computes the distance of every cell to the nearest feature cell (f64);
 cell, so they get `mask == 0`, the same problem. Multi-label: 16 labels in
 random boxes (geodex `--multilabel`, `edt.edt(labels)`; scipy has none).
 The geodex figure is the transform alone (`transform X s`, no file IO), the
-best of `--repeat` runs, like the Python ones. Results are compared with
+best of `--repeat` runs, like the Python ones; geodex and edt run
+alternately on each input so that both see the same load (the last column
+is the 1-minute load average after the row). Results are compared with
 scipy (max abs difference) as a check.
 """
 
@@ -45,18 +47,6 @@ def best(f, repeat):
     return min(t), out
 
 
-def geodex(mask_path, out_path, threads, repeat, extra=()):
-    times = []
-    for _ in range(repeat):
-        r = subprocess.run(
-            [GEODEX, "edt", "--mask", mask_path, "--out", out_path, "--threads", str(threads), *extra],
-            capture_output=True, text=True, check=True,
-        )
-        m = re.search(r"transform ([0-9.]+) s", r.stdout)
-        times.append(float(m.group(1)))
-    return min(times)
-
-
 def labels_image(shape, rng):
     lab = np.zeros(shape, dtype=np.uint32)
     for k in range(1, 17):
@@ -64,6 +54,27 @@ def labels_image(shape, rng):
         hi = [l + rng.integers(n // 8, n // 2) for l, n in zip(lo, shape)]
         lab[tuple(slice(a, b) for a, b in zip(lo, hi))] = k
     return lab
+
+
+def geodex_once(mask_path, out_path, threads, extra=()):
+    r = subprocess.run(
+        [GEODEX, "edt", "--mask", mask_path, "--out", out_path, "--threads", str(threads), *extra],
+        capture_output=True, text=True, check=True,
+    )
+    return float(re.search(r"transform ([0-9.]+) s", r.stdout).group(1))
+
+
+def interleaved(mask_path, out_path, threads, repeat, arr, extra=()):
+    """geodex and edt alternately on the same input, best of `repeat` each, so
+    that both see the same load."""
+    g, e = [], []
+    for _ in range(repeat):
+        g.append(geodex_once(mask_path, out_path, threads, extra))
+        if edt_pkg is not None:
+            s = time.perf_counter()
+            edt_pkg.edt(arr, parallel=threads)
+            e.append(time.perf_counter() - s)
+    return min(g), (min(e) if e else None)
 
 
 def main():
@@ -78,6 +89,7 @@ def main():
     rng = np.random.default_rng(0)
     tmp = tempfile.mkdtemp(prefix="edtbench")
     rows = []
+    load0 = os.getloadavg()[0]
     for size in args.sizes.split(","):
         shape = tuple(int(s) for s in size.split("x"))
         mask = rng.random(shape) < 0.01
@@ -85,33 +97,30 @@ def main():
         dpath = os.path.join(tmp, "d.npy")
         np.save(mpath, mask)
         inv = (~mask).astype(np.uint8)
+        scipy_s = None
         for t in threads:
-            g = geodex(mpath, dpath, t, args.repeat)
-            rows.append((size, "binary", t, "geodex", g))
-            if edt_pkg is not None:
-                e, _ = best(lambda: edt_pkg.edt(inv, parallel=t), args.repeat)
-                rows.append((size, "binary", t, "edt", e))
-        ours = np.load(dpath)
-        if mask.size <= args.no_scipy_above:
-            s, ref = best(lambda: ndimage.distance_transform_edt(inv), max(1, args.repeat - 1))
-            rows.append((size, "binary", 1, "scipy", s))
-            diff = float(np.max(np.abs(ours - ref)))
-            print(f"{size}: max |geodex - scipy| = {diff:.3e}", file=sys.stderr)
-            assert diff < 1e-9
-        del ours
+            g, e = interleaved(mpath, dpath, t, args.repeat, inv)
+            if t == 1 and mask.size <= args.no_scipy_above:
+                scipy_s, ref = best(lambda: ndimage.distance_transform_edt(inv), max(1, args.repeat - 1))
+                ours = np.load(dpath)
+                diff = float(np.max(np.abs(ours - ref)))
+                print(f"{size}: max |geodex - scipy| = {diff:.3e}", file=sys.stderr)
+                assert diff < 1e-9
+                del ours, ref
+            rows.append((size, "binary", t, g, e, scipy_s if t == 1 else None, os.getloadavg()[0]))
         lab = labels_image(shape, rng)
         lpath = os.path.join(tmp, "l.npy")
         np.save(lpath, lab)
         for t in threads:
-            g = geodex(lpath, dpath, t, args.repeat, extra=("--multilabel",))
-            rows.append((size, "multilabel", t, "geodex", g))
-            if edt_pkg is not None:
-                e, _ = best(lambda: edt_pkg.edt(lab, parallel=t), args.repeat)
-                rows.append((size, "multilabel", t, "edt", e))
-    print("| grid | form | threads | tool | seconds (best of %d) |" % args.repeat)
-    print("|---|---|---|---|---|")
-    for r in rows:
-        print("| %s | %s | %d | %s | %.3f |" % r)
+            g, e = interleaved(lpath, dpath, t, args.repeat, lab, extra=("--multilabel",))
+            rows.append((size, "multi-label", t, g, e, None, os.getloadavg()[0]))
+    fmt = lambda v: "" if v is None else "%.3f" % v
+    print("load average (1 min) at start: %.2f" % load0)
+    print("| grid | form | threads | geodex | edt | scipy | edt / geodex | load |")
+    print("|---|---|---|---|---|---|---|---|")
+    for size, form, t, g, e, sc, load in rows:
+        ratio = "" if e is None else "%.2f" % (e / g)
+        print("| %s | %s | %d | %s | %s | %s | %s | %.1f |" % (size, form, t, fmt(g), fmt(e), fmt(sc), ratio, load))
 
 
 if __name__ == "__main__":
