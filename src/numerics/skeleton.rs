@@ -25,12 +25,7 @@
 //!
 //! Of the two cells of a kept pair, the one nearer to the bisector of `a` and
 //! `b` (smaller `|x - b| - |x - a|`) is marked. In 2D the marks are thinned to
-//! one cell (Zhang–Suen, which keeps end points and connectivity). In 3D the
-//! marks are the anchors of a topology-preserving thinning of the whole shape
-//! (simple points in 26/6 connectivity, removed in order of increasing `D`,
-//! then a directional pass that thins what is still two cells thick): the
-//! skeleton is a thin surface/curve set with the topology of the shape (see
-//! `thin_3d`). The radius
+//! one cell (Zhang–Suen, which keeps end points and connectivity). The radius
 //! function is `D` on the skeleton (distance between cell centres; the
 //! inscribed disc reaches the boundary edges at `D - h/2`).
 //!
@@ -311,8 +306,6 @@ pub fn medial_axis(
     }
     if two_d {
         thin_2d(&mut marks, ps[1], ps[2]);
-    } else {
-        marks = thin_3d(&pmask, &marks, &dist, ps, control)?;
     }
     let mut out_mask = vec![false; grid.len()];
     let mut radius = vec![0.0; grid.len()];
@@ -337,185 +330,6 @@ pub fn medial_axis(
         distance,
         graph,
     })
-}
-
-/// Thin 3D skeleton of the shape `shape` (padded grid of shape `ps`, empty
-/// border) that keeps the medial cells `anchors`, by removing simple points
-/// (26-connectivity for the skeleton, 6 for the background), so that the
-/// skeleton has the topology of the shape (one 26-connected component per
-/// component of the shape, the same tunnels and cavities):
-/// 1. distance-ordered homotopic thinning: every cell of the shape that is
-///    not an anchor is visited in increasing order of its distance to the
-///    boundary and removed while it is simple (sweeps until none is); what
-///    stays is the anchors and the cells that connect them;
-/// 2. directional thinning of what is thicker than one cell: for each of the
-///    six directions `±e_a`, a simple cell `x` with `x + e_a` empty,
-///    `x - e_a` in the skeleton, and for both other axes `b` a neighbour
-///    `x ± e_b` in the skeleton is removed. The last two conditions make
-///    the removed cell one of a pair across the skeleton's thickness, not
-///    the end of a curve or the rim of a sheet, so sheets and curves do not
-///    shrink; sweeps until none is removed.
-fn thin_3d(
-    shape: &[bool],
-    anchors: &[bool],
-    dist: &[f64],
-    ps: [usize; 3],
-    control: &Control<'_>,
-) -> Result<Vec<bool>, SkeletonError> {
-    let st = [ps[1] * ps[2], ps[2], 1];
-    let cube = Cube::new(st);
-    let mut skel = shape.to_vec();
-    let mut order: Vec<usize> = (0..skel.len())
-        .filter(|&c| shape[c] && !anchors[c])
-        .collect();
-    order.sort_by(|&a, &b| dist[a].total_cmp(&dist[b]).then(a.cmp(&b)));
-    loop {
-        if control.is_cancelled() {
-            return Err(EdtError::Cancelled.into());
-        }
-        let mut changed = false;
-        for &c in &order {
-            if skel[c] && cube.simple(&skel, c) {
-                skel[c] = false;
-                changed = true;
-            }
-        }
-        if !changed {
-            break;
-        }
-        order.retain(|&c| skel[c]);
-    }
-    let mut cells: Vec<usize> = (0..skel.len()).filter(|&c| skel[c]).collect();
-    loop {
-        if control.is_cancelled() {
-            return Err(EdtError::Cancelled.into());
-        }
-        let mut changed = false;
-        for a in 0..3 {
-            for forward in [true, false] {
-                let (b, c2) = ((a + 1) % 3, (a + 2) % 3);
-                let step = st[a];
-                for &c in &cells {
-                    if !skel[c] {
-                        continue;
-                    }
-                    let (out, back) = if forward {
-                        (c + step, c - step)
-                    } else {
-                        (c - step, c + step)
-                    };
-                    let thick = |ax: usize| skel[c + st[ax]] || skel[c - st[ax]];
-                    if !skel[out] && skel[back] && thick(b) && thick(c2) && cube.simple(&skel, c) {
-                        skel[c] = false;
-                        changed = true;
-                    }
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
-        cells.retain(|&c| skel[c]);
-    }
-    Ok(skel)
-}
-
-/// The 3×3×3 neighbourhood of a cell (position `(dz+1)·9 + (dy+1)·3 + dx+1`,
-/// the centre is 13) with its adjacency tables, for the simple-point test.
-struct Cube {
-    /// Linear offsets of the 27 positions (the centre's is 0).
-    offset: [isize; 27],
-    /// Positions 26-adjacent to each position, as bit masks.
-    adj26: [u32; 27],
-    /// Positions 6-adjacent to each position, as bit masks.
-    adj6: [u32; 27],
-}
-
-impl Cube {
-    fn new(st: [usize; 3]) -> Self {
-        let pos = |p: usize| {
-            [
-                p as isize / 9 - 1,
-                (p as isize / 3) % 3 - 1,
-                p as isize % 3 - 1,
-            ]
-        };
-        let mut offset = [0isize; 27];
-        let mut adj26 = [0u32; 27];
-        let mut adj6 = [0u32; 27];
-        for p in 0..27 {
-            let a = pos(p);
-            offset[p] = a[0] * st[0] as isize + a[1] * st[1] as isize + a[2] * st[2] as isize;
-            for q in 0..27 {
-                let b = pos(q);
-                let d: Vec<isize> = (0..3).map(|k| (a[k] - b[k]).abs()).collect();
-                let cheb = d.iter().copied().max().unwrap_or(0);
-                let manh: isize = d.iter().sum();
-                if p != q && cheb == 1 {
-                    adj26[p] |= 1 << q;
-                    if manh == 1 {
-                        adj6[p] |= 1 << q;
-                    }
-                }
-            }
-        }
-        Self {
-            offset,
-            adj26,
-            adj6,
-        }
-    }
-
-    /// Number of components of `set` (a bit mask of positions) under the
-    /// adjacency `adj`; with `touch`, only the components that meet `touch`.
-    fn components(set: u32, adj: &[u32; 27], touch: Option<u32>) -> usize {
-        let mut left = set;
-        let mut count = 0;
-        while left != 0 {
-            let mut comp = 1u32 << left.trailing_zeros();
-            loop {
-                let mut grown = comp;
-                let mut bits = comp;
-                while bits != 0 {
-                    let q = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    grown |= adj[q] & set;
-                }
-                if grown == comp {
-                    break;
-                }
-                comp = grown;
-            }
-            left &= !comp;
-            if touch.is_none_or(|t| comp & t != 0) {
-                count += 1;
-            }
-        }
-        count
-    }
-
-    /// Whether the cell `c` of `m` is simple (Bertrand–Malandain): its
-    /// 26-neighbours in `m` form one 26-connected component, and the cells of
-    /// its 18-neighbourhood outside `m` form one 6-connected component
-    /// 6-adjacent to it. Removing a simple cell keeps the topology.
-    fn simple(&self, m: &[bool], c: usize) -> bool {
-        let mut obj = 0u32;
-        for (p, &o) in self.offset.iter().enumerate() {
-            if p != 13 && m[c.wrapping_add_signed(o)] {
-                obj |= 1 << p;
-            }
-        }
-        let all = ((1u32 << 27) - 1) & !(1 << 13);
-        if Self::components(obj, &self.adj26, None) != 1 {
-            return false;
-        }
-        // The 18-neighbourhood: no corner (all three offsets non-zero).
-        let corners: u32 = [0, 2, 6, 8, 18, 20, 24, 26]
-            .iter()
-            .fold(0, |acc, &p| acc | (1 << p));
-        let bg = all & !obj & !corners;
-        Self::components(bg, &self.adj6, Some(self.adj6[13])) == 1
-    }
 }
 
 /// Zhang–Suen thinning on an `(n0, n1)` image whose border is empty.
