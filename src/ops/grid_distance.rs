@@ -397,6 +397,17 @@ pub struct StopSpec {
     pub max_frozen: Option<u64>,
 }
 
+impl StopSpec {
+    /// The core stopping rules.
+    pub fn rules(&self) -> StopRules {
+        StopRules {
+            targets: self.targets.clone(),
+            max_distance: self.max_distance,
+            max_frozen: self.max_frozen.map(|n| n as usize),
+        }
+    }
+}
+
 /// Optional outputs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -560,11 +571,7 @@ impl GridDistanceRequest {
                 ConnectivitySpec::Diagonal => Connectivity::Diagonal,
                 ConnectivitySpec::Extended => Connectivity::Extended,
             })
-            .with_stop(StopRules {
-                targets: self.stop.targets.clone(),
-                max_distance: self.stop.max_distance,
-                max_frozen: self.stop.max_frozen.map(|n| n as usize),
-            });
+            .with_stop(self.stop.rules());
         o.record_order = self.outputs.frozen_order;
         o
     }
@@ -708,11 +715,7 @@ fn execute_tensor(
     let spec = TensorSolveSpec {
         order: req.order,
         factoring: req.factoring,
-        stop: StopRules {
-            targets: req.stop.targets.clone(),
-            max_distance: req.stop.max_distance,
-            max_frozen: req.stop.max_frozen.map(|n| n as usize),
-        },
+        stop: req.stop.rules(),
         record_order: req.outputs.frozen_order,
     };
     let sources = req.sources.iter().map(SourceSpec::to_source).collect();

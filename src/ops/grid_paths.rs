@@ -844,11 +844,17 @@ fn execute_tensor(
             "geojson and svg are for 2D grids; use json in 3D",
         ));
     }
-    // A scalar picture of the metric (sqrt(tr M / d), +inf on walls) for the SVG background.
+    // A scalar picture of the metric (sqrt(tr M / d), +inf on walls): only
+    // the SVG background reads it, so other formats skip the pass over the grid.
     let cost = {
-        let r = Riemannian::new(&resolved.grid, &resolved.metric);
+        let w = if req.format == PathFormat::Svg {
+            let r = Riemannian::new(&resolved.grid, &resolved.metric);
+            (0..resolved.grid.len()).map(|i| r.cost_at(i)).collect()
+        } else {
+            Vec::new()
+        };
         CachedCost {
-            w: (0..resolved.grid.len()).map(|i| r.cost_at(i)).collect(),
+            w,
             grid: resolved.grid.clone(),
             spacing: resolved.spacing.clone(),
         }
@@ -892,12 +898,20 @@ fn execute_tensor(
             solve_seconds: solved.seconds,
         });
         let t = Instant::now();
-        let u: Vec<f64> = out.distance.iter().copied().collect();
+        // The solver's array is in standard layout: borrow it, copy only otherwise.
+        let owned: Vec<f64>;
+        let u: &[f64] = match out.distance.as_slice() {
+            Some(u) => u,
+            None => {
+                owned = out.distance.iter().copied().collect();
+                &owned
+            }
+        };
         let grid = &problem.grid;
         let set = SourceSet::new(grid, &problem.sources)
             .map_err(|e| path_error(e, "ends", &*leg.source_field))?;
         let riemannian = Riemannian::new(grid, &problem.metric);
-        let dm = DistanceMap::new(grid, &u, &riemannian)
+        let dm = DistanceMap::new(grid, u, &riemannian)
             .map_err(|e| OpError::invalid("metric", e.to_string()))?;
         for (end_index, (field, end)) in leg.ends.iter().enumerate() {
             if control.is_cancelled() {

@@ -19,7 +19,7 @@ use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::anisotropic::descent::minimal_path;
 use crate::numerics::paths::DescentOptions;
-use crate::numerics::{Control, Source, StopRules};
+use crate::numerics::{Control, Source};
 
 /// Request of `grid.tensor_distance` (`POST /v1/grid/tensor-distance`, job
 /// operation `grid.tensor_distance`).
@@ -194,11 +194,7 @@ impl Operation for GridTensorDistanceRequest {
         let spec = TensorSolveSpec {
             order: self.order,
             factoring: self.factoring,
-            stop: StopRules {
-                targets: self.stop.targets.clone(),
-                max_distance: self.stop.max_distance,
-                max_frozen: self.stop.max_frozen.map(|n| n as usize),
-            },
+            stop: self.stop.rules(),
             record_order: self.outputs.frozen_order,
         };
         let solved = solve_tensor(&problem, &spec, "tensor", control)?;
