@@ -63,6 +63,27 @@ pub struct DistanceArgs {
         allow_hyphen_values = true
     )]
     pub sources: Vec<String>,
+    /// Spacing, scheme, speed and obstacles (shared with `geodex path`).
+    #[command(flatten)]
+    pub scheme: SchemeFlags,
+    /// Stop once the front passes this distance (cells beyond stay +inf).
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
+    pub max_distance: Option<f64>,
+    /// Stop once these points (index coordinates) are reached; repeatable.
+    #[arg(long = "target", value_name = "I,J[,K]", allow_hyphen_values = true)]
+    pub targets: Vec<String>,
+    /// Where to write the distance U (f64 NPY, +inf where not reached).
+    #[arg(long, value_name = "U.npy")]
+    pub out: PathBuf,
+    /// Where to write the Voronoi labels (i32 NPY, -1 where not reached).
+    #[arg(long, value_name = "L.npy")]
+    pub labels: Option<PathBuf>,
+}
+
+/// The flags of `geodex distance` and `geodex path` that shape the solve
+/// itself: spacing, scheme, speed and obstacles.
+#[derive(Debug, Clone, Args)]
+pub struct SchemeFlags {
     /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
     #[arg(
         long,
@@ -90,18 +111,59 @@ pub struct DistanceArgs {
     /// A mask of the grid's shape whose non-zero cells are obstacles.
     #[arg(long, value_name = "MASK.npy")]
     pub obstacles: Option<PathBuf>,
-    /// Stop once the front passes this distance (cells beyond stay +inf).
-    #[arg(long, value_name = "D", allow_negative_numbers = true)]
-    pub max_distance: Option<f64>,
-    /// Stop once these points (index coordinates) are reached; repeatable.
-    #[arg(long = "target", value_name = "I,J[,K]", allow_hyphen_values = true)]
-    pub targets: Vec<String>,
-    /// Where to write the distance U (f64 NPY, +inf where not reached).
-    #[arg(long, value_name = "U.npy")]
-    pub out: PathBuf,
-    /// Where to write the Voronoi labels (i32 NPY, -1 where not reached).
-    #[arg(long, value_name = "L.npy")]
-    pub labels: Option<PathBuf>,
+}
+
+impl SchemeFlags {
+    /// The metric flags, with the command's own `--cost`, `--shape`, `--tensor`.
+    pub(crate) fn metric<'a>(
+        &'a self,
+        cost: Option<&'a Path>,
+        shape: Option<&'a [usize]>,
+        tensor: Option<&'a Path>,
+    ) -> MetricFlags<'a> {
+        MetricFlags {
+            cost,
+            shape,
+            tensor,
+            obstacles: self.obstacles.as_deref(),
+            speed: self.speed,
+        }
+    }
+
+    /// `--method` in the request's terms.
+    pub(crate) fn method_spec(&self) -> MethodSpec {
+        match self.method {
+            MethodArg::FastMarching => MethodSpec::FastMarching,
+            MethodArg::FastSweeping => MethodSpec::FastSweeping,
+            MethodArg::Dijkstra => MethodSpec::Dijkstra,
+        }
+    }
+
+    /// `--connectivity` in the request's terms.
+    pub(crate) fn connectivity_spec(&self) -> ConnectivitySpec {
+        match self.connectivity {
+            ConnectivityArg::Axial => ConnectivitySpec::Axial,
+            ConnectivityArg::Diagonal => ConnectivitySpec::Diagonal,
+            ConnectivityArg::Extended => ConnectivitySpec::Extended,
+        }
+    }
+
+    /// The dataset id of `--obstacles` in the request.
+    pub(crate) fn obstacles_id(&self) -> Option<String> {
+        self.obstacles.as_ref().map(|_| "obstacles".to_string())
+    }
+}
+
+/// Point sources (index coordinates) as the request's source sections.
+pub(crate) fn point_sources(points: Vec<Vec<f64>>) -> Vec<SourceSpec> {
+    points
+        .into_iter()
+        .map(|p| SourceSpec {
+            point: Some(p),
+            cells: None,
+            values: None,
+        })
+        .collect()
 }
 
 /// `--method`.
@@ -153,41 +215,25 @@ pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> Distan
 pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
     let sources = parse_points("--source", &args.sources)?;
     let targets = parse_points("--target", &args.targets)?;
-    let metric = MetricFlags {
-        cost: args.cost.as_deref(),
-        shape: args.shape.as_deref(),
-        tensor: args.tensor.as_deref(),
-        obstacles: args.obstacles.as_deref(),
-        speed: args.speed,
-    };
+    let scheme = &args.scheme;
+    let metric = scheme.metric(
+        args.cost.as_deref(),
+        args.shape.as_deref(),
+        args.tensor.as_deref(),
+    );
     let (inputs, cost, tensor) = metric.load(None)?;
     let cost_flag = metric.flag();
 
     let request = GridDistanceRequest {
         cost,
         metric: tensor,
-        spacing: args.spacing.clone(),
-        obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
-        sources: sources
-            .into_iter()
-            .map(|p| SourceSpec {
-                point: Some(p),
-                cells: None,
-                values: None,
-            })
-            .collect(),
-        method: match args.method {
-            MethodArg::FastMarching => MethodSpec::FastMarching,
-            MethodArg::FastSweeping => MethodSpec::FastSweeping,
-            MethodArg::Dijkstra => MethodSpec::Dijkstra,
-        },
-        order: args.order,
-        factoring: !args.no_factoring,
-        connectivity: match args.connectivity {
-            ConnectivityArg::Axial => ConnectivitySpec::Axial,
-            ConnectivityArg::Diagonal => ConnectivitySpec::Diagonal,
-            ConnectivityArg::Extended => ConnectivitySpec::Extended,
-        },
+        spacing: scheme.spacing.clone(),
+        obstacles: scheme.obstacles_id(),
+        sources: point_sources(sources),
+        method: scheme.method_spec(),
+        order: scheme.order,
+        factoring: !scheme.no_factoring,
+        connectivity: scheme.connectivity_spec(),
         stop: StopSpec {
             targets,
             max_distance: args.max_distance,

@@ -23,12 +23,9 @@ use std::path::PathBuf;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
-use super::distance::{
-    flag, op_error, parse_points, ConnectivityArg, DistanceError, MethodArg, MetricFlags,
-};
+use super::distance::{flag, op_error, parse_points, point_sources, DistanceError, SchemeFlags};
 use crate::numerics::grid::MAX_CELLS;
 use crate::numerics::Control;
-use crate::ops::grid_distance::{ConnectivitySpec, MethodSpec, SourceSpec};
 use crate::ops::grid_metric::DesignSpec;
 use crate::ops::grid_paths::{self, GridPathsRequest, PathFormat};
 use crate::ops::OpLimits;
@@ -64,32 +61,9 @@ pub struct PathArgs {
     /// A point of a closed contour (instead of --source/--to); repeatable, at least 3.
     #[arg(long = "contour", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub contour: Vec<String>,
-    /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
-    /// The solver.
-    #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
-    pub method: MethodArg,
-    /// Order of the finite-difference scheme.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
-    pub order: u8,
-    /// Turn off source factoring around point sources.
-    #[arg(long)]
-    pub no_factoring: bool,
-    /// Graph neighbourhood of --method dijkstra.
-    #[arg(long, value_enum, default_value_t = ConnectivityArg::Diagonal)]
-    pub connectivity: ConnectivityArg,
-    /// Read the values of --cost as a speed F = 1/W (0 marks a wall).
-    #[arg(long)]
-    pub speed: bool,
-    /// A mask of the grid's shape whose non-zero cells are obstacles.
-    #[arg(long, value_name = "MASK.npy")]
-    pub obstacles: Option<PathBuf>,
+    /// Spacing, scheme, speed and obstacles (as in `geodex distance`).
+    #[command(flatten)]
+    pub scheme: SchemeFlags,
     /// Compute the whole distance map instead of stopping at the end points.
     #[arg(long)]
     pub no_early_stop: bool,
@@ -154,43 +128,27 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
     if design.is_some() && args.cost.is_none() {
         return Err(flag("--design", "needs the image in --cost"));
     }
-    let metric = MetricFlags {
-        cost: args.cost.as_deref(),
-        shape: args.shape.as_deref(),
-        tensor: args.tensor.as_deref(),
-        obstacles: args.obstacles.as_deref(),
-        speed: args.speed,
-    };
+    let scheme = &args.scheme;
+    let metric = scheme.metric(
+        args.cost.as_deref(),
+        args.shape.as_deref(),
+        args.tensor.as_deref(),
+    );
     let (inputs, cost, tensor) = metric.load(design)?;
     let cost_flag = metric.flag();
     let request = GridPathsRequest {
         cost,
         metric: tensor,
-        spacing: args.spacing.clone(),
-        obstacles: args.obstacles.as_ref().map(|_| "obstacles".to_string()),
-        sources: sources
-            .into_iter()
-            .map(|p| SourceSpec {
-                point: Some(p),
-                cells: None,
-                values: None,
-            })
-            .collect(),
+        spacing: scheme.spacing.clone(),
+        obstacles: scheme.obstacles_id(),
+        sources: point_sources(sources),
         ends,
         waypoints,
         contour,
-        method: match args.method {
-            MethodArg::FastMarching => MethodSpec::FastMarching,
-            MethodArg::FastSweeping => MethodSpec::FastSweeping,
-            MethodArg::Dijkstra => MethodSpec::Dijkstra,
-        },
-        order: args.order,
-        connectivity: match args.connectivity {
-            ConnectivityArg::Axial => ConnectivitySpec::Axial,
-            ConnectivityArg::Diagonal => ConnectivitySpec::Diagonal,
-            ConnectivityArg::Extended => ConnectivitySpec::Extended,
-        },
-        factoring: !args.no_factoring,
+        method: scheme.method_spec(),
+        order: scheme.order,
+        connectivity: scheme.connectivity_spec(),
+        factoring: !scheme.no_factoring,
         early_stop: !args.no_early_stop,
         step: 0.5,
         format: match args.format {
