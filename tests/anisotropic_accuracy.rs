@@ -126,9 +126,12 @@ fn pullback_metric_matches_hfm_at_order_two() {
     let (first, _) = pullback_case(200, &TensorOptions::DEFAULT.with_order(Order::First));
     let order = (coarse / fine).log2();
     println!("pull-back: L∞ 100 {coarse:.3e}, 200 {fine:.3e} (mean {mean:.3e}), order {order:.2}; first order at 200: {first:.3e}");
-    // HFM: 1.63e-3 with order 2 at 200 cells.
-    assert!(fine <= 2.0e-3, "{fine}");
-    assert!(fine < coarse && first > 5.0 * fine);
+    // The bound (HFM: 1.63e-3 with order 2 at 200 cells); measured
+    // 4.4e-4, observed order 2.06 (1.66e-3 and 0.95 before the edge cells
+    // completed their stencils).
+    assert!(fine <= 1.6e-3, "{fine}");
+    assert!(order >= 1.8, "observed order {order}");
+    assert!(first > 5.0 * fine);
 }
 
 #[test]

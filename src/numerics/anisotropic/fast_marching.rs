@@ -41,6 +41,15 @@
 //! the same point source, and dropped for the plain scheme when its root
 //! lies below a neighbour value it used (causality first).
 //!
+//! # Edges of the domain
+//!
+//! An offset whose upwind neighbour falls outside the grid would drop its
+//! term, a first-order inconsistency along the whole edge (the pull-back
+//! test's worst cells all lay on it: 1.66e-3 at 200 cells, order 0.95).
+//! With factoring, the update completes such terms with the gradient
+//! estimated from the terms in use (see `extrapolated`), as long as the
+//! completed update stays close to monotone: 4.4e-4 at 200 cells, order 2.
+//!
 //! # Incomplete stencils
 //!
 //! Near the corners of the domain and of walls a wide offset can have both
@@ -136,6 +145,10 @@ struct Term {
     label: i32,
     /// The neighbour's own value (causality check of the factored update).
     a: f64,
+    /// `x − x_j` (index units): `s (U − b) ≈ ⟨∇U, w⟩`.
+    w: [f64; 3],
+    /// `√(c2 / ρ)`: 1, or 3/2 for a second-order difference.
+    s: f64,
 }
 
 pub(super) fn solve(
@@ -494,6 +507,8 @@ impl Ctx<'_> {
         // the term (the isotropic engine's rule on the grid line nearest to
         // an off-grid source, for every offset).
         let mut fixed_part = 0.0;
+        let mut missing = [(0.0, [0.0; 3]); 6];
+        let mut nm = 0;
         for s in 0..k {
             let rho = self.st.rho[y * k + s];
             if rho <= 0.0 {
@@ -541,18 +556,25 @@ impl Ctx<'_> {
                     }
                 }
                 if best.is_none_or(|t: Term| b < t.b) {
+                    let xj = self.pos(j);
+                    let xy = self.pos(y);
                     best = Some(Term {
                         c2,
                         b,
                         label: labels[j],
                         a,
+                        w: [xy[0] - xj[0], xy[1] - xj[1], xy[2] - xj[2]],
+                        s: (c2 / rho).sqrt(),
                     });
                 }
             }
             if let Some(t) = best {
                 terms[nt] = t;
                 nt += 1;
-            } else if fp.is_some() {
+                continue;
+            }
+            let before = fixed_part;
+            if fp.is_some() {
                 for side in 0..2 {
                     let j = self.st.nb[(y * k + s) * 2 + side];
                     if j == NONE {
@@ -568,7 +590,26 @@ impl Ctx<'_> {
                     }
                 }
             }
+            // An offset cut by the edge of the domain on one side (the other
+            // side present but not frozen, i.e. downwind): remembered for the
+            // completed update of [`extrapolated`]. Not at walls, where it
+            // did not help: the wall test's (anisotropy 40) mean error was
+            // 2.51e-2 with it, 2.45e-2 without.
+            let (j0, j1) = (self.st.nb[(y * k + s) * 2], self.st.nb[(y * k + s) * 2 + 1]);
+            if fixed_part == before && (j0 == NONE) != (j1 == NONE) {
+                let j = if j0 == NONE { j1 } else { j0 } as usize;
+                let (xj, xy) = (self.pos(j), self.pos(y));
+                let e = [xj[0] - xy[0], xj[1] - xy[1], xj[2] - xy[2]];
+                if !self
+                    .grid
+                    .contains_point3([xy[0] - e[0], xy[1] - e[1], xy[2] - e[2]])
+                {
+                    missing[nm] = (rho, e);
+                    nm += 1;
+                }
+            }
         }
+        let ndim = self.grid.ndim();
         if fp.is_none() {
             return solve_terms(&mut terms[..nt], 1.0);
         }
@@ -584,7 +625,8 @@ impl Ctx<'_> {
         loop {
             let (root, label, min_a) = solve_terms(&mut terms[..nt], rhs)?;
             if min_a <= root {
-                return Some((root, label, min_a));
+                let plain = (root, label, min_a);
+                return Some(extrapolated(&terms[..nt], &missing[..nm], rhs, ndim, plain));
             }
             let mut kept = 0;
             for m in 0..nt {
@@ -632,6 +674,157 @@ fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
         .map_or(-1, |p| p.label);
     let min_a = t[..used].iter().map(|p| p.a).fold(f64::INFINITY, f64::min);
     Some((root, label, min_a))
+}
+
+/// The root of the scheme completed at the edge of the domain: an offset
+/// `e_m` whose upwind neighbour would lie outside is not dropped (which makes the stencil inconsistent there, a first-order error
+/// along the whole edge: the pull-back test's worst cells were all on it)
+/// but keeps its term `ρ_m ⟨∇U, e_m⟩²` with the gradient estimated from the
+/// terms in use: `s_k (U − b_k) ≈ ⟨∇U, w_k⟩` for each of them, so
+/// `∇U ≈ G (U) = (WᵀW)⁻¹ Wᵀ (s ∘ (U − b))`, linear in `U`, and the equation
+/// `Σ c2_k (U − b_k)² + Σ_m ρ_m ⟨G(U), e_m⟩² = rhs` stays a quadratic.
+/// Only frozen values enter it (nothing leaks through a wall). The plain
+/// root is kept when the terms in use do not span the space, or when the
+/// completed root is not causal (below a neighbour value it used) or not
+/// smaller than the plain one.
+fn extrapolated(
+    t: &[Term],
+    missing: &[(f64, [f64; 3])],
+    rhs: f64,
+    ndim: usize,
+    plain: (f64, i32, f64),
+) -> (f64, i32, f64) {
+    if missing.is_empty() {
+        return plain;
+    }
+    let root = plain.0;
+    let mut buf = [Term::default(); 6];
+    let mut nu = 0;
+    for p in t.iter().filter(|p| p.b < root) {
+        buf[nu] = *p;
+        nu += 1;
+    }
+    let used = &buf[..nu];
+    if used.len() < ndim {
+        return plain;
+    }
+    // Normal matrix WᵀW (padded axis 0 of a 2D grid set to the identity).
+    let mut n = [[0.0f64; 3]; 3];
+    for p in used {
+        for a in 0..3 {
+            for c in 0..3 {
+                n[a][c] += p.w[a] * p.w[c];
+            }
+        }
+    }
+    if ndim == 2 {
+        n[0] = [1.0, 0.0, 0.0];
+        n[1][0] = 0.0;
+        n[2][0] = 0.0;
+    }
+    let Some(inv) = invert3(&n) else {
+        return plain;
+    };
+    // ⟨G(U), e_m⟩ = Σ_k λ_mk s_k (U − b_k), λ_mk = ⟨w_k, (WᵀW)⁻¹ e_m⟩.
+    let mut lambda = [[0.0f64; 6]; 6];
+    let (mut qa, mut qb, mut qc) = (0.0, 0.0, -rhs);
+    for p in used {
+        qa += p.c2;
+        qb += p.c2 * p.b;
+        qc += p.c2 * p.b * p.b;
+    }
+    for (m, &(rho, e)) in missing.iter().enumerate() {
+        let mut ie = [0.0; 3];
+        for a in 0..3 {
+            for c in 0..3 {
+                ie[a] += inv[a][c] * e[c];
+            }
+        }
+        let (mut big_a, mut big_b) = (0.0, 0.0);
+        for (k, p) in used.iter().enumerate() {
+            let l = p.w[0] * ie[0] + p.w[1] * ie[1] + p.w[2] * ie[2];
+            lambda[m][k] = l;
+            big_a += l * p.s;
+            big_b += l * p.s * p.b;
+        }
+        // ρ (A U − B)².
+        qa += rho * big_a * big_a;
+        qb += rho * big_a * big_b;
+        qc += rho * big_b * big_b;
+    }
+    let disc = qb * qb - qa * qc;
+    if !(qa > 0.0) || !(disc >= 0.0) {
+        return plain;
+    }
+    let r = (qb + disc.sqrt()) / qa;
+    let max_a = used.iter().map(|p| p.a).fold(f64::NEG_INFINITY, f64::max);
+    let max_b = used.iter().map(|p| p.b).fold(f64::NEG_INFINITY, f64::max);
+    if !(r.is_finite() && r >= max_a && r > max_b && r <= root) {
+        return plain;
+    }
+    // Stability: `∂U/∂b_j ∝ c_j (U − b_j) + Σ_m ρ_m G_m λ_mj s_j` (they sum to
+    // 1 once normalised). The plain scheme has them all ≥ 0 (monotone); the
+    // completed one may not, and where the extrapolated offsets outweigh
+    // the terms in use (a needle along the edge) the errors of the
+    // estimated gradient are amplified from cell to cell (23 % at ratio
+    // 100, 45°, 512², with no limit). The completed root is kept when the
+    // negative share is at most [`EDGE_NEGATIVE_SHARE`].
+    let mut g = [0.0f64; 6];
+    for (m, gm) in g.iter_mut().enumerate().take(missing.len()) {
+        *gm = used
+            .iter()
+            .enumerate()
+            .map(|(k, p)| lambda[m][k] * p.s * (r - p.b))
+            .sum();
+    }
+    let (mut pos, mut neg) = (0.0, 0.0);
+    for (j, p) in used.iter().enumerate() {
+        let cross: f64 = missing
+            .iter()
+            .enumerate()
+            .map(|(m, &(rho, _))| rho * g[m] * lambda[m][j] * p.s)
+            .sum();
+        let c = p.c2 * (r - p.b) + cross;
+        if c >= 0.0 {
+            pos += c;
+        } else {
+            neg -= c;
+        }
+    }
+    if neg <= EDGE_NEGATIVE_SHARE * (pos - neg) {
+        (r, plain.1, plain.2)
+    } else {
+        plain
+    }
+}
+
+/// Largest total negative weight `Σ_j max(0, −∂U/∂b_j)` of the completed
+/// edge update ([`extrapolated`]). Measured on the pull-back test at 200
+/// cells: 0 (strictly monotone) keeps it at 1.57e-3 and first order, 0.5
+/// gives 4.4e-4 and order 2.06, no limit 5.1e-4 but 23 % on the ratio-100
+/// needle at 45° (which every value up to 2 keeps exact); 39 random smooth
+/// fields of ratio 5 to 60 showed no growth of the error with 0.5.
+const EDGE_NEGATIVE_SHARE: f64 = 0.5;
+
+/// The inverse of a symmetric 3×3 matrix, if it is well conditioned.
+fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let c = |a: usize, b: usize| {
+        let (a1, a2) = ((a + 1) % 3, (a + 2) % 3);
+        let (b1, b2) = ((b + 1) % 3, (b + 2) % 3);
+        m[a1][b1] * m[a2][b2] - m[a1][b2] * m[a2][b1]
+    };
+    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
+    let scale = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
+    if !(det.abs() > 1e-9 * scale * scale * scale) {
+        return None;
+    }
+    let mut inv = [[0.0; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            inv[a][b] = c(b, a) / det;
+        }
+    }
+    Some(inv)
 }
 
 /// Length (index units) of the longest offset `e_k` with a present
@@ -708,6 +901,8 @@ mod tests {
             b,
             label,
             a: b,
+            w: [0.0; 3],
+            s: 1.0,
         }
     }
 
