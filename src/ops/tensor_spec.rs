@@ -8,6 +8,7 @@ use utoipa::ToSchema;
 
 use std::time::Instant;
 
+use super::grid_distance::eikonal_error;
 use super::{InputArray, Inputs, OpError, OpLimits};
 use crate::numerics::anisotropic::height_map::height_map_metric;
 use crate::numerics::anisotropic::structure_tensor::edge_metric;
@@ -15,7 +16,7 @@ use crate::numerics::anisotropic::{
     components, eigen_tensor, energy_anisotropy, solve, TensorError, TensorField, TensorOptions,
     TensorOutput, TensorProblem, TensorSolveError,
 };
-use crate::numerics::{Control, Grid, GridError, Order, Source, StopRules};
+use crate::numerics::{Control, EikonalError, Grid, GridError, Order, Source, StopRules};
 
 /// The metric tensor field `M(x)` (symmetric positive definite; a
 /// displacement `v` costs `sqrt(vᵀ M v)`). Components are in array index
@@ -637,18 +638,9 @@ pub fn solve_tensor(
 /// A core anisotropic solve error as an [`OpError`]; the metric is named `prefix`.
 pub fn tensor_solve_error(e: TensorSolveError, prefix: &str) -> OpError {
     match e {
-        TensorSolveError::Cancelled => OpError::Cancelled,
-        TensorSolveError::Source { index, reason } => {
-            OpError::invalid(format!("sources[{index}]"), reason)
-        }
-        TensorSolveError::Target { index, reason } => {
-            OpError::invalid(format!("stop.targets[{index}]"), reason)
-        }
-        TensorSolveError::NoSources => OpError::invalid("sources", e.to_string()),
-        TensorSolveError::Option { field, reason } => OpError::invalid(field, reason),
         TensorSolveError::Tensor(t) => tensor_error(t, prefix),
-        TensorSolveError::Grid(_) | TensorSolveError::Dimension { .. } => {
-            OpError::invalid(prefix, e.to_string())
-        }
+        TensorSolveError::Dimension { .. } => OpError::invalid(prefix, e.to_string()),
+        TensorSolveError::Solve(EikonalError::Grid(g)) => OpError::invalid(prefix, g.to_string()),
+        TensorSolveError::Solve(e) => eikonal_error(e),
     }
 }

@@ -63,7 +63,7 @@ use super::stencil::{Stencils, NEIGHBOURS, NONE};
 use super::{TensorError, TensorOptions, TensorProblem, TensorSolveError};
 use crate::numerics::control::Control;
 use crate::numerics::eikonal::{
-    finish, nearest_cell, target_cells, EikonalOutput, Order, Source, StopReason,
+    finish, nearest_cell, target_cells, EikonalError, EikonalOutput, Order, Source, StopReason,
 };
 use crate::numerics::grid::Grid;
 use crate::numerics::heap::{IndexedHeap, FIRST_TAG};
@@ -173,7 +173,7 @@ pub(super) fn solve(
     let mut factor: Vec<Option<FactorPoint>> = vec![None; problem.sources.len()];
     for (index, source) in problem.sources.iter().enumerate() {
         let label = index as i32;
-        let err = |reason: String| TensorSolveError::Source { index, reason };
+        let err = |reason: String| TensorSolveError::from(EikonalError::Source { index, reason });
         match source {
             Source::Point(p) => {
                 let p3 = grid.point3(p).map_err(|e| err(e.to_string()))?;
@@ -261,15 +261,7 @@ pub(super) fn solve(
             heap.push(i as u32, u[i]);
         }
     }
-    let mut targets = target_cells(grid, &options.stop.targets).map_err(|e| match e {
-        crate::numerics::EikonalError::Target { index, reason } => {
-            TensorSolveError::Target { index, reason }
-        }
-        other => TensorSolveError::Option {
-            field: "stop.targets",
-            reason: other.to_string(),
-        },
-    })?;
+    let mut targets = target_cells(grid, &options.stop.targets)?;
     targets.sort_unstable();
     targets.dedup();
     let mut remaining = targets.len();
@@ -300,7 +292,7 @@ pub(super) fn solve(
         frozen += 1;
         if frozen.is_multiple_of(8192) {
             if control.is_cancelled() {
-                return Err(TensorSolveError::Cancelled);
+                return Err(EikonalError::Cancelled.into());
             }
             control.report(frozen as f64 / n as f64);
         }

@@ -42,8 +42,8 @@ pub use tensor::{
 };
 
 use super::control::Control;
-use super::eikonal::{EikonalOutput, Order, Source, StopRules};
-use super::grid::{Grid, GridError};
+use super::eikonal::{EikonalError, EikonalOutput, Order, Source, StopRules};
+use super::grid::Grid;
 
 /// The input of an anisotropic solve.
 #[derive(Debug, Clone)]
@@ -133,12 +133,11 @@ pub struct TensorOutput {
     pub stencil: StencilStats,
 }
 
-/// Why an anisotropic solve was refused or interrupted.
+/// Why an anisotropic solve was refused or interrupted: the tensor field's
+/// own errors, and those it shares with the isotropic engine (grid,
+/// sources, stop targets, options, cancellation) as an [`EikonalError`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum TensorSolveError {
-    /// The grid is invalid.
-    #[error(transparent)]
-    Grid(#[from] GridError),
     /// The tensor field is invalid.
     #[error(transparent)]
     Tensor(TensorError),
@@ -150,36 +149,18 @@ pub enum TensorSolveError {
         /// The grid's dimension.
         grid: usize,
     },
-    /// No source was given.
-    #[error("at least one source is required")]
-    NoSources,
-    /// A source is outside the grid, on a wall, or malformed.
-    #[error("sources[{index}]: {reason}")]
-    Source {
-        /// Position in [`TensorProblem::sources`].
-        index: usize,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// A stop target is outside the grid or malformed.
-    #[error("stop.targets[{index}]: {reason}")]
-    Target {
-        /// Position in [`StopRules::targets`].
-        index: usize,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// An option is out of its range.
-    #[error("{field}: {reason}")]
-    Option {
-        /// The option's name.
-        field: &'static str,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// The caller raised the cancel flag.
-    #[error("cancelled")]
-    Cancelled,
+    /// What the isotropic engine would refuse in the same place (the
+    /// positions in `Source` and `Target` index [`TensorProblem::sources`]
+    /// and [`StopRules::targets`]).
+    #[error(transparent)]
+    Solve(#[from] EikonalError),
+}
+
+impl TensorSolveError {
+    /// An invalid option.
+    fn option(field: &'static str, reason: String) -> Self {
+        EikonalError::Option { field, reason }.into()
+    }
 }
 
 /// Computes the Riemannian distance to the sources, with Voronoi labels.
@@ -211,30 +192,30 @@ pub fn solve(
         });
     }
     if problem.sources.is_empty() {
-        return Err(TensorSolveError::NoSources);
+        return Err(EikonalError::NoSources.into());
     }
     if problem.sources.len() > i32::MAX as usize {
-        return Err(TensorSolveError::Option {
-            field: "sources",
-            reason: "too many sources".into(),
-        });
+        return Err(TensorSolveError::option(
+            "sources",
+            "too many sources".into(),
+        ));
     }
     if !(options.source_radius.is_finite() && options.source_radius >= 0.0) {
-        return Err(TensorSolveError::Option {
-            field: "source_radius",
-            reason: format!("{} must be finite and >= 0", options.source_radius),
-        });
+        return Err(TensorSolveError::option(
+            "source_radius",
+            format!("{} must be finite and >= 0", options.source_radius),
+        ));
     }
     if let Some(d) = options.stop.max_distance {
         if d.is_nan() || d < 0.0 {
-            return Err(TensorSolveError::Option {
-                field: "stop.max_distance",
-                reason: format!("{d} must be >= 0"),
-            });
+            return Err(TensorSolveError::option(
+                "stop.max_distance",
+                format!("{d} must be >= 0"),
+            ));
         }
     }
     let st = stencil::build(&problem.grid, &problem.metric, control)
-        .map_err(|_| TensorSolveError::Cancelled)?;
+        .map_err(|_| EikonalError::Cancelled)?;
     let output = fast_marching::solve(problem, &st, options, control)?;
     Ok(TensorOutput {
         output,
