@@ -745,7 +745,9 @@ fn extrapolated(
         qc += rho * big_b * big_b;
     }
     let disc = qb * qb - qa * qc;
-    if !(qa > 0.0) || !(disc >= 0.0) {
+    // False for NaN too.
+    let solvable = qa > 0.0 && disc >= 0.0;
+    if !solvable {
         return plain;
     }
     let r = (qb + disc.sqrt()) / qa;
@@ -807,7 +809,8 @@ fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     };
     let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
     let scale = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
-    if !(det.abs() > 1e-9 * scale * scale * scale) {
+    let well_conditioned = det.abs() > 1e-9 * scale * scale * scale;
+    if !well_conditioned {
         return None;
     }
     let mut inv = [[0.0; 3]; 3];
