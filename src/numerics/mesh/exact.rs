@@ -122,6 +122,9 @@ const DEGENERATE: f64 = 1e-12;
 /// Windows narrower than this fraction of their edge carry no ray worth
 /// following (the vertex update of their ends is done by their parent).
 const MIN_WIDTH: f64 = 1e-13;
+/// How many of the latest propagated windows of each half-edge are kept
+/// for the comparison filter (see [`Propagation::recent`]).
+const RECENT: usize = 2;
 /// How many heap pops between two cancellation checks / progress reports.
 const POLL: usize = 4096;
 
@@ -140,21 +143,119 @@ struct Window {
     label: u32,
 }
 
-impl PartialEq for Window {
-    fn eq(&self, other: &Self) -> bool {
-        self.key.total_cmp(&other.key) == Ordering::Equal
+/// The order of non-negative `f64` keys as `u64`: the bit patterns of
+/// non-negative floats sort like the floats (`-0.0`, NaN and negatives map
+/// to 0).
+#[inline]
+fn key_bits(key: f64) -> u64 {
+    if key > 0.0 {
+        key.to_bits()
+    } else {
+        0
     }
 }
-impl Eq for Window {}
-impl PartialOrd for Window {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
+
+/// Monotone priority queue of windows (a radix heap on the bits of the
+/// key): bucket `i > 0` holds the keys whose highest bit differing from the
+/// last popped key `last` is bit `i − 1`, bucket 0 the keys equal to it.
+/// A pop that finds bucket 0 empty moves the first non-empty bucket down
+/// relative to its minimum; every window moves at most 64 times, in
+/// practice a few, and always through sequential `Vec`s, where a binary
+/// heap of 56-byte windows spent a third of the solve in cache misses.
+///
+/// It needs keys never below the last popped one: children are never
+/// closer than their parent, and a key that rounding put below is raised
+/// to `last` (this only reorders windows within rounding; the
+/// propagation's exactness does not depend on the order, see the module
+/// documentation).
+struct RadixQueue {
+    last: u64,
+    len: usize,
+    buckets: Vec<Vec<Window>>,
+}
+
+impl RadixQueue {
+    fn new() -> Self {
+        Self {
+            last: 0,
+            len: 0,
+            buckets: (0..65).map(|_| Vec::new()).collect(),
+        }
+    }
+
+    #[inline]
+    fn bucket(last: u64, key: u64) -> usize {
+        (64 - (key ^ last).leading_zeros()) as usize
+    }
+
+    #[inline]
+    fn push(&mut self, mut w: Window) {
+        let mut key = key_bits(w.key);
+        if key < self.last {
+            key = self.last;
+            w.key = f64::from_bits(key);
+        }
+        self.buckets[Self::bucket(self.last, key)].push(w);
+        self.len += 1;
+    }
+
+    /// The smallest key, after moving it to bucket 0.
+    fn peek_key(&mut self) -> Option<f64> {
+        if self.buckets[0].is_empty() {
+            let i = self.buckets.iter().position(|b| !b.is_empty())?;
+            let mut items = std::mem::take(&mut self.buckets[i]);
+            let last = items
+                .iter()
+                .map(|w| key_bits(w.key))
+                .min()
+                .unwrap_or(self.last);
+            self.last = last;
+            for w in items.drain(..) {
+                let key = key_bits(w.key);
+                self.buckets[Self::bucket(last, key)].push(w);
+            }
+            // Keep the allocation of the emptied bucket.
+            self.buckets[i] = items;
+        }
+        self.buckets[0].last().map(|w| w.key)
+    }
+
+    fn pop(&mut self) -> Option<Window> {
+        self.peek_key()?;
+        self.len -= 1;
+        self.buckets[0].pop()
     }
 }
-impl Ord for Window {
-    /// Reversed: the heap pops the smallest key first.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.key.total_cmp(&self.key)
+
+/// The distance field `σ + |I x|` of a propagated window over `[b0, b1]`,
+/// in the frame of its half-edge: what the comparison filter needs.
+#[derive(Debug, Clone, Copy)]
+struct Field {
+    b0: f64,
+    b1: f64,
+    sx: f64,
+    sy: f64,
+    sigma: f64,
+}
+
+impl Field {
+    /// An empty slot: overlaps nothing.
+    const EMPTY: Field = Field {
+        b0: f64::INFINITY,
+        b1: f64::NEG_INFINITY,
+        sx: 0.0,
+        sy: 0.0,
+        sigma: 0.0,
+    };
+
+    fn of(w: &Window) -> Self {
+        Field {
+            b0: w.b0,
+            b1: w.b1,
+            sx: w.sx,
+            sy: w.sy,
+            sigma: w.sigma,
+        }
     }
 }
 
@@ -286,12 +387,14 @@ struct Propagation<'a> {
     /// For each vertex, the half-edge and crossing of the straight path that
     /// set its distance (`NONE` when set otherwise).
     via: Vec<(u32, f64)>,
-    windows: BinaryHeap<Window>,
+    windows: RadixQueue,
     vertices: BinaryHeap<VertexEvent>,
-    /// Head of the list of propagated windows of each half-edge (into `stored`).
-    edge_head: Vec<u32>,
-    /// Propagated windows and the next one of their half-edge's list.
-    stored: Vec<(Window, u32)>,
+    /// The latest [`RECENT`] windows propagated across each half-edge
+    /// (newest first), the only ones a new window is compared with: on
+    /// icospheres comparing with every earlier window (as before) removed
+    /// no more than 0.1 % more windows, for `O(windows per edge)` time per
+    /// comparison and `O(windows)` memory.
+    recent: Vec<[Field; RECENT]>,
     reached: usize,
     reachable: usize,
     stats: ExactStats,
@@ -354,10 +457,9 @@ impl<'a> Propagation<'a> {
             label: vec![NONE; nv],
             emitted: vec![f64::INFINITY; nv],
             via: vec![(NONE, 0.0); nv],
-            windows: BinaryHeap::new(),
+            windows: RadixQueue::new(),
             vertices: BinaryHeap::new(),
-            edge_head: vec![NONE; 3 * nf],
-            stored: Vec::new(),
+            recent: vec![[Field::EMPTY; RECENT]; 3 * nf],
             reached: 0,
             reachable: 0,
             stats: ExactStats::default(),
@@ -578,7 +680,7 @@ impl<'a> Propagation<'a> {
         }
         self.stats.windows_created += 1;
         self.windows.push(w);
-        self.stats.max_queue = self.stats.max_queue.max(self.windows.len());
+        self.stats.max_queue = self.stats.max_queue.max(self.windows.len);
     }
 
     /// Cuts off the parts of `w` (on its half-edge of length `l`) where the
@@ -634,18 +736,16 @@ impl<'a> Propagation<'a> {
         if !wide {
             return false;
         }
-        // Against the windows already propagated across this edge, in both
+        // Against the latest windows propagated across this edge, in both
         // directions.
         for (h, flip) in [(w.h, false), (self.topo.opposite[w.h as usize], true)] {
             if h == NONE {
                 continue;
             }
             let reversed = flip && self.vertex(h as usize / 3, h as usize % 3) != self.vertex(f, k);
-            let mut i = self.edge_head[h as usize];
-            while i != NONE {
-                let (o, next) = self.stored[i as usize];
+            for o in self.recent[h as usize] {
                 let o = if reversed {
-                    Window {
+                    Field {
                         b0: l - o.b1,
                         b1: l - o.b0,
                         sx: l - o.sx,
@@ -657,7 +757,6 @@ impl<'a> Propagation<'a> {
                 if !trim_by_window(w, &o, l) {
                     return false;
                 }
-                i = next;
             }
         }
         true
@@ -682,9 +781,9 @@ impl<'a> Propagation<'a> {
             return;
         }
         self.stats.windows_propagated += 1;
-        let head = self.edge_head[w.h as usize];
-        self.edge_head[w.h as usize] = self.stored.len() as u32;
-        self.stored.push((w, head));
+        let slots = &mut self.recent[w.h as usize];
+        slots.copy_within(0..RECENT - 1, 1);
+        slots[0] = Field::of(&w);
         let (b0, b1) = (w.b0, w.b1);
         // The ray through c crosses the edge at xc.
         let xc = sx + (fr.cx - sx) * (-sy) / (fr.cy - sy);
@@ -760,7 +859,7 @@ impl<'a> Propagation<'a> {
     fn run(&mut self, control: &Control<'_>) -> Result<(), MeshSolveError> {
         let mut pops = 0usize;
         loop {
-            let wk = self.windows.peek().map(|w| w.key);
+            let wk = self.windows.peek_key();
             let vk = self.vertices.peek().map(|e| e.key);
             let take_vertex = match (wk, vk) {
                 (None, None) => break,
@@ -873,7 +972,7 @@ impl<'a> Propagation<'a> {
 /// its roots split the overlap into pieces of constant sign. Returns false
 /// when nothing of `w` is left.
 #[inline]
-fn trim_by_window(w: &mut Window, o: &Window, l: f64) -> bool {
+fn trim_by_window(w: &mut Window, o: &Field, l: f64) -> bool {
     let lo = w.b0.max(o.b0);
     let hi = w.b1.min(o.b1);
     let overlap = hi > lo;
@@ -1022,4 +1121,64 @@ fn single_fan(faces: &[[u32; 3]], topo: &Topology, v: u32) -> bool {
         }
     }
     count == ring.len()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn window(key: f64) -> Window {
+        Window {
+            key,
+            b0: 0.0,
+            b1: 1.0,
+            sx: 0.0,
+            sy: -1.0,
+            sigma: 0.0,
+            h: 0,
+            label: 0,
+        }
+    }
+
+    /// Pops come out sorted while pushes interleave with them (each push at
+    /// or above the last pop, as children of the popped window), and a key
+    /// below the last pop is raised to it.
+    #[test]
+    fn radix_queue_pops_in_order() {
+        let mut q = RadixQueue::new();
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..50 {
+            q.push(window(3.0 * next()));
+        }
+        let mut last = 0.0f64;
+        let mut popped = 0;
+        while let Some(w) = q.pop() {
+            assert!(w.key >= last, "{} after {last}", w.key);
+            last = w.key;
+            popped += 1;
+            if popped < 2000 {
+                for _ in 0..2 {
+                    if next() < 0.5 {
+                        q.push(window(last + next() * next()));
+                    }
+                }
+            }
+        }
+        assert_eq!(q.len, 0);
+        assert!(popped > 50);
+        let top = last + 1.0;
+        q.push(window(top));
+        assert_eq!(q.pop().map(|w| w.key), Some(top));
+        q.push(window(top - 0.5));
+        assert_eq!(q.pop().map(|w| w.key), Some(top));
+        q.push(window(0.0));
+        q.push(window(-0.0));
+        assert_eq!(q.peek_key(), Some(top));
+    }
 }
