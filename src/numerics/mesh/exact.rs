@@ -105,12 +105,16 @@
 //!
 //! **Complexity.** Worst case `O(n²)` windows and `O(n² log n)` time (as
 //! for Chen–Han). Measured on icospheres (`tests/bench/mesh_exact.rs`):
-//! 47, 98 and 196 windows per vertex at 10k, 41k and 164k vertices, i.e.
-//! `O(n^1.5)` windows; each new window is compared with the windows already
-//! on its edge, so the time grows a little faster than that.
-//! Memory is `O(n)` for the vertex arrays, plus the pending windows (56
-//! bytes each) and the propagated ones (60 bytes each, kept per edge for
-//! the comparison above).
+//! 47, 98 and 197 windows per vertex at 10k, 41k and 164k vertices, i.e.
+//! `O(n^1.5)` windows (on a convex surface the rays crossing an edge are
+//! split by every vertex between it and the source). Each window costs
+//! `O(1)`: four comparisons at most and a radix-heap push and pop, so the
+//! time grows like the windows (0.12 s, 0.84 s and 5.1 s on the shared VM,
+//! 5-10x faster than pygeodesic's MMP at 41k-164k).
+//! Memory: the vertex arrays and two windows (40 bytes each) per
+//! half-edge for the comparison filter, `O(n)`, plus the pending windows
+//! (56 bytes each, 77k at most at 164k vertices): about 1.1 kB per vertex
+//! in all (200 MiB peak at 164k vertices, mesh included).
 //!
 //! **Robustness.** Degenerate faces are never entered; a final
 //! `O(E)` check verifies `U(v) ≤ U(u) + |uv|` on every edge and, only if
