@@ -20,11 +20,14 @@
 //! (Meijster et al.), run over whole rows so that it reads memory in order;
 //! every later pass computes, on each line, the lower envelope of the
 //! parabolas `q ↦ h² (q - p)² + f(p)` in `O(n)` (Felzenszwalb–Huttenlocher
-//! 2012). The multi-label transform runs the envelope on each run of equal
-//! labels of a line, with the two cells that bound the run (of another label)
-//! as parabolas of height 0; a cell of another label farther along the line
-//! is never nearer than the one that bounds the run, which makes the pass
-//! exact. The transform is exact: every value is `sqrt` of a sum of the same
+//! 2012). The multi-label transform has the same layout: its first pass,
+//! over whole rows along the outermost axis, counts the cells to the nearest
+//! label change above and below (the distance to the cells that bound each
+//! run of equal labels); every later pass runs the envelope on each run of
+//! equal labels of a line, with the two cells that bound the run (of another
+//! label) as parabolas of height 0. A cell of another label farther along the
+//! line is never nearer than the one that bounds the run, which makes the
+//! passes exact. In 2D no pass gathers strided lines, in 3D one does. The transform is exact: every value is `sqrt` of a sum of the same
 //! squared axis offsets as the brute-force minimum, so the two agree to
 //! rounding (the tests assert 1e-12 on random anisotropic masks).
 //!
@@ -294,31 +297,36 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
 ) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
     let shape = grid.shape3();
     let h = grid.spacing3();
-    // The contiguous axis (the last active one) goes first: with no distance
-    // yet, its pass is the distance to the two cells that bound each run of
-    // equal labels, computed without an envelope.
-    let mut axes = active_axes(shape);
-    axes.rotate_right(1);
+    // The outermost axis goes first, swept over whole rows (memory read in
+    // order, no gather): with no distance yet, its pass is the distance to
+    // the two cells that bound each run of equal labels.
+    let axes = active_axes(shape);
     let n = grid.len();
     let mut d = vec![0.0f64; n];
     let mut feat = features.then(|| vec![NO_FEATURE; n]);
-    for (k, &axis) in axes.iter().enumerate() {
+    let first = axes[0];
+    label_row_sweeps(
+        shape[first],
+        n / shape[first],
+        h[first],
+        labels,
+        &mut d,
+        feat.as_deref_mut(),
+    );
+    control.report(1.0 / axes.len() as f64);
+    for (k, &axis) in axes.iter().enumerate().skip(1) {
         if control.is_cancelled() {
             return Err(EdtError::Cancelled);
         }
-        if k == 0 {
-            run_pass(shape[axis], h[axis], &mut d, feat.as_deref_mut(), labels);
-        } else {
-            envelope_pass(
-                shape,
-                axis,
-                h[axis],
-                &mut d,
-                feat.as_deref_mut(),
-                Some(labels),
-                control,
-            );
-        }
+        envelope_pass(
+            shape,
+            axis,
+            h[axis],
+            &mut d,
+            feat.as_deref_mut(),
+            Some(labels),
+            control,
+        );
         control.report((k + 1) as f64 / axes.len() as f64);
     }
     if control.is_cancelled() {
@@ -327,61 +335,118 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
     Ok((d, feat))
 }
 
-/// First pass of the multi-label transform along the contiguous axis (lines
-/// of length `n`): on each run `[s, e)` of equal labels, the cell `q` gets
-/// `(h (q - b))²` for the nearer of the bounding cells `b = s - 1` and
-/// `b = e` that exist (`+inf` when the line holds one label).
-fn run_pass<L: Copy + PartialEq + Send + Sync>(
-    n: usize,
+/// First pass of the multi-label transform along an axis whose lines are the
+/// columns of an `(rows, width)` C-order matrix: on each run `[s, e)` of equal
+/// labels of a column, the cell `q` gets `(h (q - b))²` for the nearer of the
+/// bounding cells `b = s - 1` and `b = e` that exist (`+inf` when the column
+/// holds one label; the upper one on a tie). A forward sweep counts the cells
+/// since the last label change above, a backward one since the next below,
+/// over whole rows (memory read in order); parallel over blocks of columns.
+fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
+    rows: usize,
+    width: usize,
     h: f64,
+    labels: &[L],
     d: &mut [f64],
     feat: Option<&mut [u32]>,
-    labels: &[L],
 ) {
-    let line = |li: usize, out: &mut [f64], mut fout: Option<&mut [u32]>, lab: &[L]| {
-        let base = li * n;
-        let mut s = 0;
-        while s < n {
-            let mut e = s + 1;
-            while e < n && lab[e] == lab[s] {
-                e += 1;
+    let block = block_width(width);
+    let Ok(mut dv) = ArrayViewMut2::from_shape((rows, width), d) else {
+        return;
+    };
+    let sweep = |c0: usize,
+                 mut dc: ndarray::ArrayViewMut2<'_, f64>,
+                 mut fc: Option<ndarray::ArrayViewMut2<'_, u32>>| {
+        let w = dc.ncols();
+        let lab = |i: usize| &labels[i * width + c0..i * width + c0 + w];
+        // Forward: cells to the last cell of another label above.
+        let mut run = vec![f64::INFINITY; w];
+        let mut frun = vec![NO_FEATURE; if fc.is_some() { w } else { 0 }];
+        dc.row_mut(0).fill(f64::INFINITY);
+        for i in 1..rows {
+            let (m, up) = (lab(i), lab(i - 1));
+            let mut row = dc.row_mut(i);
+            for (((v, r), &a), &b) in row.iter_mut().zip(run.iter_mut()).zip(m).zip(up) {
+                *r = if a != b { 1.0 } else { *r + 1.0 };
+                *v = *r;
             }
-            for q in s..e {
-                let left = (s > 0).then(|| q - (s - 1));
-                let right = (e < n).then(|| e - q);
-                let (dist, b) = match (left, right) {
-                    (Some(l), Some(r)) if r < l => (r, e),
-                    (Some(l), _) => (l, s - 1),
-                    (None, Some(r)) => (r, e),
-                    (None, None) => {
-                        out[q] = f64::INFINITY;
-                        if let Some(f) = fout.as_deref_mut() {
-                            f[q] = NO_FEATURE;
-                        }
-                        continue;
+            if let Some(fc) = fc.as_mut() {
+                let mut frow = fc.row_mut(i);
+                for (j, ((fv, fr), (&a, &b))) in frow
+                    .iter_mut()
+                    .zip(frun.iter_mut())
+                    .zip(m.iter().zip(up))
+                    .enumerate()
+                {
+                    if a != b {
+                        *fr = ((i - 1) * width + c0 + j) as u32;
                     }
-                };
-                let x = dist as f64 * h;
-                out[q] = x * x;
-                if let Some(f) = fout.as_deref_mut() {
-                    f[q] = (base + b) as u32;
+                    *fv = *fr;
                 }
             }
-            s = e;
+        }
+        if let Some(fc) = fc.as_mut() {
+            fc.row_mut(0).fill(NO_FEATURE);
+        }
+        // Backward: the nearer of above and below, squared and scaled.
+        run.fill(f64::INFINITY);
+        frun.fill(NO_FEATURE);
+        for i in (0..rows).rev() {
+            let m = lab(i);
+            let down = if i + 1 < rows { lab(i + 1) } else { m };
+            let mut row = dc.row_mut(i);
+            match fc.as_mut() {
+                None => {
+                    for (((v, r), &a), &b) in row.iter_mut().zip(run.iter_mut()).zip(m).zip(down) {
+                        let below = if a != b { 1.0 } else { *r + 1.0 };
+                        *r = below;
+                        let c = if below < *v { below } else { *v };
+                        let x = c * h;
+                        *v = x * x;
+                    }
+                }
+                Some(fc) => {
+                    let mut frow = fc.row_mut(i);
+                    for (j, ((v, r), ((fv, fr), (&a, &b)))) in row
+                        .iter_mut()
+                        .zip(run.iter_mut())
+                        .zip(frow.iter_mut().zip(frun.iter_mut()).zip(m.iter().zip(down)))
+                        .enumerate()
+                    {
+                        if a != b {
+                            *r = 1.0;
+                            *fr = ((i + 1) * width + c0 + j) as u32;
+                        } else {
+                            *r += 1.0;
+                        }
+                        if *r < *v {
+                            *v = *r;
+                            *fv = *fr;
+                        }
+                        let x = *v * h;
+                        *v = x * x;
+                    }
+                }
+            }
         }
     };
     match feat {
-        None => d
-            .par_chunks_mut(n)
-            .zip(labels.par_chunks(n))
-            .enumerate()
-            .for_each(|(li, (out, lab))| line(li, out, None, lab)),
-        Some(f) => d
-            .par_chunks_mut(n)
-            .zip(f.par_chunks_mut(n))
-            .zip(labels.par_chunks(n))
-            .enumerate()
-            .for_each(|(li, ((out, fo), lab))| line(li, out, Some(fo), lab)),
+        None => {
+            dv.axis_chunks_iter_mut(Axis(1), block)
+                .into_par_iter()
+                .enumerate()
+                .for_each(|(b, dc)| sweep(b * block, dc, None));
+        }
+        Some(f) => {
+            let Ok(mut fv) = ArrayViewMut2::from_shape((rows, width), f) else {
+                return;
+            };
+            dv.axis_chunks_iter_mut(Axis(1), block)
+                .into_par_iter()
+                .zip(fv.axis_chunks_iter_mut(Axis(1), block).into_par_iter())
+                .enumerate()
+                .for_each(|(b, (dc, fc))| sweep(b * block, dc, Some(fc)));
+        }
     }
 }
 

@@ -25,7 +25,15 @@
 //!
 //! Of the two cells of a kept pair, the one nearer to the bisector of `a` and
 //! `b` (smaller `|x - b| - |x - a|`) is marked. In 2D the marks are thinned to
-//! one cell (Zhang–Suen, which keeps end points and connectivity). The radius
+//! one cell (Zhang–Suen, which keeps end points and connectivity). In 3D the
+//! marks are the anchors of a topology-preserving thinning of the whole shape
+//! (removal of simple points in the (26, 6) connectivity, shallowest first,
+//! peeled from the six directions in turn, never the end of a curve that is
+//! a mark): the result is a curve skeleton, one cell thin, with the topology
+//! of the shape (26-components, tunnels; a cavity keeps a closed surface
+//! around it), whose curves end on medial cells (see `thin_3d`). Pruning acts
+//! through the marks: a branch survives only where it ends on a kept mark.
+//! The radius
 //! function is `D` on the skeleton (distance between cell centres; the
 //! inscribed disc reaches the boundary edges at `D - h/2`).
 //!
@@ -135,7 +143,7 @@ pub struct Skeleton {
     pub radius: Vec<f64>,
     /// The distance to the nearest outside cell on the whole grid (0 outside the shape).
     pub distance: Vec<f64>,
-    /// 2D only: the skeleton as a graph.
+    /// 2D only: the skeleton as a graph (in 3D, `mask` holds a curve skeleton).
     pub graph: Option<SkeletonGraph>,
 }
 
@@ -145,6 +153,18 @@ pub fn medial_axis(
     mask: &[bool],
     options: &SkeletonOptions,
     control: &Control<'_>,
+) -> Result<Skeleton, SkeletonError> {
+    medial_axis_with(grid, mask, options, control, true)
+}
+
+/// [`medial_axis`], with the 3D thinning optional (the tests compare the
+/// thinned skeleton with the medial cells it starts from).
+fn medial_axis_with(
+    grid: &Grid,
+    mask: &[bool],
+    options: &SkeletonOptions,
+    control: &Control<'_>,
+    thin_3d_cells: bool,
 ) -> Result<Skeleton, SkeletonError> {
     if mask.len() != grid.len() {
         return Err(SkeletonError::Length {
@@ -306,6 +326,8 @@ pub fn medial_axis(
     }
     if two_d {
         thin_2d(&mut marks, ps[1], ps[2]);
+    } else if thin_3d_cells {
+        marks = thin_3d(&pmask, &marks, &dist, ps, h[0].min(h[1]).min(h[2]), control)?;
     }
     let mut out_mask = vec![false; grid.len()];
     let mut radius = vec![0.0; grid.len()];
@@ -330,6 +352,274 @@ pub fn medial_axis(
         distance,
         graph,
     })
+}
+
+/// Distance-ordered homotopic thinning of a 3D shape to a curve skeleton.
+///
+/// `shape` is the padded shape (grid `ps`, empty border), `anchors` its medial
+/// cells, `dist` the distance to the boundary, `hmin` the smallest spacing.
+/// The current set `X` starts as the shape. For the levels `L = 0, 1, 2, …`
+/// (cells with `⌊dist / hmin⌋ ≤ L` may go), rounds of six directional
+/// sub-iterations (`±e_0, ±e_1, ±e_2`, as in Lee–Kashyap–Chu 1994) run until a
+/// round removes nothing. A sub-iteration for the direction `e`:
+/// 1. takes, on `X` as it is, the exposed cells: `p ∈ X` at level `≤ L` with
+///    `p + e ∉ X` and `p - e ∈ X` (material behind it, so a sheet or a curve
+///    one cell thin across `e` is not pierced; a cell with no 6-neighbour in
+///    `X` is exposed too);
+/// 2. for each of the 8 subfields (parity classes of the coordinates) in
+///    turn, removes the exposed cells of the subfield that are simple
+///    ([`is_simple`], (26, 6) connectivity) and are not the end of a medial
+///    curve (an anchor with exactly one 26-neighbour in `X`). No two cells of a
+///    subfield are 26-adjacent, so these tests do not depend on the order of
+///    the removals inside it, and removing them all at once keeps the topology.
+///
+/// Removing only simple points keeps the topology of the shape: as many
+/// 26-components, tunnels and cavities. Peeling from the six sides in turn,
+/// the shallowest cells first, with the exposure fixed before each
+/// sub-iteration (peeling one layer, never two), keeps what is left centred:
+/// it ends as curves through the deepest cells (closed surfaces around
+/// cavities). A medial cell near the boundary (a spur of the digitised
+/// surface) is reached while it is still inside thick material, with many
+/// neighbours, and goes; a curve stops shrinking at an anchored end.
+/// A last sequential sweep removes the simple cells that no direction exposes
+/// (two curves side by side along a diagonal).
+fn thin_3d(
+    shape: &[bool],
+    anchors: &[bool],
+    dist: &[f64],
+    ps: [usize; 3],
+    hmin: f64,
+    control: &Control<'_>,
+) -> Result<Vec<bool>, SkeletonError> {
+    let st = [ps[1] * ps[2], ps[2], 1];
+    let mut offset = [0isize; 27];
+    for (p, o) in offset.iter_mut().enumerate() {
+        let d = cube_pos(p);
+        *o = d[0] * st[0] as isize + d[1] * st[1] as isize + d[2] * st[2] as isize;
+    }
+    let nbhd = |x: &[bool], c: usize| -> u32 {
+        let mut bits = 0u32;
+        for (p, &o) in offset.iter().enumerate() {
+            if p != CENTRE && x[c.wrapping_add_signed(o)] {
+                bits |= 1 << p;
+            }
+        }
+        bits
+    };
+    let level = |c: usize| (dist[c] / hmin) as usize;
+    // The parity class of a cell's coordinates: 8 subfields.
+    let subfield = |c: usize| (c / st[0] % 2) * 4 + (c / st[1] % ps[1] % 2) * 2 + c % ps[2] % 2;
+    let faces = [
+        st[0] as isize,
+        -(st[0] as isize),
+        st[1] as isize,
+        -(st[1] as isize),
+        1,
+        -1,
+    ];
+    let mut x = shape.to_vec();
+    // Border cells (a 6-neighbour outside X): only they can be simple.
+    // `active` holds those at the current level or below, `later[l]` those
+    // of level l above it.
+    let mut listed = vec![false; x.len()];
+    let mut later: Vec<Vec<usize>> = Vec::new();
+    for c in 0..x.len() {
+        if x[c] && faces.iter().any(|&o| !x[c.wrapping_add_signed(o)]) {
+            listed[c] = true;
+            let l = level(c);
+            if later.len() <= l {
+                later.resize_with(l + 1, Vec::new);
+            }
+            later[l].push(c);
+        }
+    }
+    let mut active: Vec<usize> = Vec::new();
+    let mut cand = Vec::new();
+    let mut exposed = Vec::new();
+    let mut l = 0;
+    while l < later.len() {
+        active.append(&mut later[l]);
+        loop {
+            if control.is_cancelled() {
+                return Err(EdtError::Cancelled.into());
+            }
+            let mut removed = false;
+            for &e in &faces {
+                // The cells exposed in the direction e, before any removal
+                // of this sub-iteration.
+                exposed.clear();
+                exposed.extend(active.iter().copied().filter(|&c| {
+                    x[c] && !x[c.wrapping_add_signed(e)]
+                        && (x[c.wrapping_add_signed(-e)] || nbhd(&x, c) & ADJ6[CENTRE] == 0)
+                }));
+                for sub in 0..8 {
+                    cand.clear();
+                    cand.extend(exposed.iter().copied().filter(|&c| {
+                        subfield(c) == sub && {
+                            let n = nbhd(&x, c);
+                            !(anchors[c] && n.count_ones() == 1) && is_simple(n)
+                        }
+                    }));
+                    // No two cells of a subfield are 26-adjacent: removing
+                    // one changes no other's neighbourhood, so the tests
+                    // above hold for all of them at once.
+                    for &c in &cand {
+                        x[c] = false;
+                        removed = true;
+                        for &o in &faces {
+                            let y = c.wrapping_add_signed(o);
+                            if x[y] && !listed[y] {
+                                listed[y] = true;
+                                let ly = level(y);
+                                if ly <= l {
+                                    active.push(y);
+                                } else {
+                                    if later.len() <= ly {
+                                        later.resize_with(ly + 1, Vec::new);
+                                    }
+                                    later[ly].push(y);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            active.retain(|&c| x[c]);
+            if !removed {
+                break;
+            }
+        }
+        l += 1;
+    }
+    // What the directional passes cannot reach: simple cells with
+    // 6-neighbours on opposite sides only across the thin set (two curves
+    // side by side along a diagonal), removed one at a time.
+    let mut cells: Vec<usize> = (0..x.len()).filter(|&c| x[c]).collect();
+    loop {
+        let mut removed = false;
+        for &c in &cells {
+            let n = nbhd(&x, c);
+            if !(anchors[c] && n.count_ones() == 1) && is_simple(n) {
+                x[c] = false;
+                removed = true;
+            }
+        }
+        if !removed {
+            break;
+        }
+        cells.retain(|&c| x[c]);
+    }
+    Ok(x)
+}
+
+/// Position of the centre in the 3×3×3 neighbourhood, whose position
+/// `p = 9 (d0 + 1) + 3 (d1 + 1) + (d2 + 1)` is the offset `(d0, d1, d2)`.
+const CENTRE: usize = 13;
+
+/// The offset `(d0, d1, d2) ∈ {-1, 0, 1}³` of position `p` of the 3×3×3 neighbourhood.
+const fn cube_pos(p: usize) -> [isize; 3] {
+    [
+        (p / 9) as isize - 1,
+        ((p / 3) % 3) as isize - 1,
+        (p % 3) as isize - 1,
+    ]
+}
+
+/// Adjacency of the 27 positions as bit masks: `ADJ26[p]` has the positions
+/// at Chebyshev distance 1 from `p` (26-adjacency), `ADJ6[p]` those at
+/// Manhattan distance 1 (6-adjacency).
+const fn cube_adjacency(six: bool) -> [u32; 27] {
+    let mut adj = [0u32; 27];
+    let mut p = 0;
+    while p < 27 {
+        let a = cube_pos(p);
+        let mut q = 0;
+        while q < 27 {
+            let b = cube_pos(q);
+            let d = [
+                (a[0] - b[0]).abs(),
+                (a[1] - b[1]).abs(),
+                (a[2] - b[2]).abs(),
+            ];
+            let cheb = if d[0] > d[1] { d[0] } else { d[1] };
+            let cheb = if cheb > d[2] { cheb } else { d[2] };
+            let manh = d[0] + d[1] + d[2];
+            if p != q && cheb == 1 && (!six || manh == 1) {
+                adj[p] |= 1 << q;
+            }
+            q += 1;
+        }
+        p += 1;
+    }
+    adj
+}
+
+const ADJ26: [u32; 27] = cube_adjacency(false);
+const ADJ6: [u32; 27] = cube_adjacency(true);
+
+/// The 18-neighbourhood of the centre without it: every position but the
+/// centre and the eight corners (offsets with three non-zero coordinates).
+const N18: u32 = {
+    let mut m = 0u32;
+    let mut p = 0;
+    while p < 27 {
+        let d = cube_pos(p);
+        let nz = (d[0] != 0) as u32 + (d[1] != 0) as u32 + (d[2] != 0) as u32;
+        if nz == 1 || nz == 2 {
+            m |= 1 << p;
+        }
+        p += 1;
+    }
+    m
+};
+
+/// The component of `set` (bit mask of positions) that contains the
+/// positions of `seed`, under the adjacency `adj`.
+fn grow(seed: u32, set: u32, adj: &[u32; 27]) -> u32 {
+    let mut comp = seed & set;
+    let mut front = comp;
+    while front != 0 {
+        let mut next = 0u32;
+        let mut bits = front;
+        while bits != 0 {
+            let q = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            next |= adj[q];
+        }
+        front = next & set & !comp;
+        comp |= front;
+    }
+    comp
+}
+
+/// Whether the centre of a 3×3×3 neighbourhood is a simple point of the
+/// foreground in the (26, 6) connectivity (Bertrand–Malandain 1994):
+/// `nbhd` has bit `p` set when position `p` is foreground (the centre's bit
+/// is ignored). With `X* = N26*(p) ∩ X` and `B = N18*(p) \ X`, the centre is
+/// simple iff
+/// * the topological number `T26 = #26-components of X*` is 1, and
+/// * `T6 = #6-components of B that contain a 6-neighbour of p` is 1.
+///
+/// Removing a simple point from `X` changes neither the 26-components of `X`,
+/// nor the 6-components of its complement, nor their tunnels.
+fn is_simple(nbhd: u32) -> bool {
+    let all = ((1u32 << 27) - 1) & !(1 << CENTRE);
+    let fg = nbhd & all;
+    if fg == 0 {
+        return false;
+    }
+    let first = fg & fg.wrapping_neg();
+    if grow(first, fg, &ADJ26) != fg {
+        return false;
+    }
+    let bg = N18 & !fg;
+    let faces = ADJ6[CENTRE] & bg;
+    if faces == 0 {
+        return false;
+    }
+    let first = faces & faces.wrapping_neg();
+    // One component iff the component of one free face reaches all free faces.
+    grow(first, bg, &ADJ6) & faces == faces
 }
 
 /// Zhang–Suen thinning on an `(n0, n1)` image whose border is empty.
@@ -662,6 +952,236 @@ mod tests {
             "branch toward the bump: {} cells",
             toward(&raw)
         );
+    }
+
+    /// The 27-bit neighbourhood with the given offsets set.
+    fn cube(offsets: &[[isize; 3]]) -> u32 {
+        offsets
+            .iter()
+            .map(|d| 1u32 << ((d[0] + 1) * 9 + (d[1] + 1) * 3 + d[2] + 1))
+            .fold(0, |a, b| a | b)
+    }
+
+    /// All offsets of the neighbourhood but the centre that satisfy `f`.
+    fn cube_where(f: impl Fn([isize; 3]) -> bool) -> u32 {
+        (0..27)
+            .filter(|&p| p != CENTRE && f(cube_pos(p)))
+            .fold(0, |a, p| a | (1 << p))
+    }
+
+    #[test]
+    fn simple_points_in_26_6_connectivity() {
+        // Isolated voxel: removing it deletes a component.
+        assert!(!is_simple(0));
+        // End of a line (face, edge or corner neighbour): simple.
+        assert!(is_simple(cube(&[[0, 0, 1]])));
+        assert!(is_simple(cube(&[[0, 1, 1]])));
+        assert!(is_simple(cube(&[[1, 1, 1]])));
+        // Middle of a line, straight or bent: removing it splits the line.
+        assert!(!is_simple(cube(&[[0, 0, -1], [0, 0, 1]])));
+        assert!(!is_simple(cube(&[[-1, -1, -1], [1, 1, 1]])));
+        assert!(!is_simple(cube(&[[0, -1, 0], [1, 1, 1]])));
+        // A corner of a bent line whose two neighbours touch each other: simple.
+        assert!(is_simple(cube(&[[0, 0, 1], [0, 1, 0]])));
+        // The centre of a ring in a plane: removing it opens a tunnel through
+        // the ring (the background above and below would join), not simple.
+        let ring = cube_where(|d| d[0] == 0);
+        assert!(!is_simple(ring));
+        // Interior of a solid: removing it creates a cavity.
+        assert!(!is_simple(cube_where(|_| true)));
+        // Flat face of a solid (foreground on one side, including the face plane): simple.
+        assert!(is_simple(cube_where(|d| d[0] >= 0)));
+        // An edge and a corner of a solid cube: simple.
+        assert!(is_simple(cube_where(|d| d[0] >= 0 && d[1] >= 0)));
+        assert!(is_simple(cube_where(|d| d[0] >= 0
+            && d[1] >= 0
+            && d[2] >= 0)));
+        // A ring broken at a face cell: removing the centre leaves a bent
+        // line and no tunnel, simple. (Broken at a corner cell, the ring is
+        // still closed through the 26-adjacent face cells.)
+        assert!(is_simple(ring & !cube(&[[0, 1, 0]])));
+        assert!(!is_simple(ring & !cube(&[[0, 1, 1]])));
+        // The centre of a solid pierced by a background line through it: the
+        // two background faces are not
+        // 6-connected in N18, removing the centre would join them (a tunnel).
+        assert!(!is_simple(cube_where(|d| !(d[0] == 0 && d[1] == 0))));
+        // The same with a background bridge in N18 joining them: simple.
+        assert!(is_simple(cube_where(|d| {
+            !(d[1] == 0 && (d[0] == 0 || d[0] == 1))
+        })));
+    }
+
+    /// 26-connected components of the cells of `m` (shape `s`).
+    fn components_26(m: &[bool], s: [usize; 3]) -> usize {
+        let mut seen = vec![false; m.len()];
+        let mut count = 0;
+        for start in 0..m.len() {
+            if !m[start] || seen[start] {
+                continue;
+            }
+            count += 1;
+            seen[start] = true;
+            let mut stack = vec![start];
+            while let Some(c) = stack.pop() {
+                let p = [c / (s[1] * s[2]), (c / s[2]) % s[1], c % s[2]];
+                for q in 0..27 {
+                    let d = cube_pos(q);
+                    let n: Option<Vec<usize>> = (0..3)
+                        .map(|a| p[a].checked_add_signed(d[a]).filter(|&v| v < s[a]))
+                        .collect();
+                    if let Some(n) = n {
+                        let n = (n[0] * s[1] + n[1]) * s[2] + n[2];
+                        if m[n] && !seen[n] {
+                            seen[n] = true;
+                            stack.push(n);
+                        }
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    fn solid(s: [usize; 3], inside: impl Fn(f64, f64, f64) -> bool) -> Vec<bool> {
+        (0..s[0] * s[1] * s[2])
+            .map(|c| {
+                let (i, j, k) = (c / (s[1] * s[2]), (c / s[2]) % s[1], c % s[2]);
+                inside(i as f64, j as f64, k as f64)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn three_d_cylinder_thins_to_its_axis() {
+        // Cylinder of radius 6.5 around (j, k) = (10, 10), i in 2..=33.
+        let s = [36usize, 21, 21];
+        let mask = solid(s, |i, j, k| {
+            (2.0..=33.0).contains(&i) && (j - 10.0).powi(2) + (k - 10.0).powi(2) <= 6.5 * 6.5
+        });
+        let grid = Grid::unit(&s).unwrap();
+        let opts = SkeletonOptions::default();
+        let raw = medial_axis_with(&grid, &mask, &opts, &Control::new(), false).unwrap();
+        let sk = medial_axis(&grid, &mask, &opts, &Control::new()).unwrap();
+        let m = &sk.mask;
+        let cells: Vec<[usize; 3]> = (0..m.len())
+            .filter(|&c| m[c])
+            .map(|c| grid.unravel(c))
+            .collect();
+        let n_raw = raw.mask.iter().filter(|&&v| v).count();
+        assert!(
+            cells.len() * 4 < n_raw,
+            "{} cells of {n_raw} medial cells",
+            cells.len()
+        );
+        assert_eq!(components_26(m, s), 1);
+        for p in &cells {
+            let off = ((p[1] as f64 - 10.0).powi(2) + (p[2] as f64 - 10.0).powi(2)).sqrt();
+            assert!(off <= 1.5, "{p:?} is {off} from the axis");
+            assert!(mask[grid.linear(*p)]);
+        }
+        // A contiguous line: every section from i = 9 to 26 (the axis is
+        // the medial axis between 6.5 + 0.5 cells from each cap) holds
+        // one or two cells, with the radius function about 7.
+        for i in 9..=26 {
+            let section: Vec<&[usize; 3]> = cells.iter().filter(|p| p[0] == i).collect();
+            assert!((1..=2).contains(&section.len()), "section {i}: {section:?}");
+            for p in section {
+                let r = sk.radius[grid.linear(*p)];
+                assert!((6.0..=7.5).contains(&r), "radius {r} at {p:?}");
+            }
+        }
+        assert!(sk.radius.iter().zip(m).all(|(&r, &k)| (r > 0.0) == k));
+    }
+
+    #[test]
+    fn three_d_box_thins_and_keeps_topology() {
+        // Box of 24 x 18 x 9 cells in a 28 x 22 x 13 grid.
+        let s = [28usize, 22, 13];
+        let (lo, hi) = ([2.0, 2.0, 2.0], [25.0, 19.0, 10.0]);
+        let mask = solid(s, |i, j, k| {
+            [i, j, k]
+                .iter()
+                .enumerate()
+                .all(|(a, &v)| (lo[a]..=hi[a]).contains(&v))
+        });
+        let grid = Grid::unit(&s).unwrap();
+        let opts = SkeletonOptions::default();
+        let raw = medial_axis_with(&grid, &mask, &opts, &Control::new(), false).unwrap();
+        let sk = medial_axis(&grid, &mask, &opts, &Control::new()).unwrap();
+        let m = &sk.mask;
+        let n = m.iter().filter(|&&v| v).count();
+        let n_raw = raw.mask.iter().filter(|&&v| v).count();
+        assert!(n > 0 && n * 4 < n_raw, "{n} cells of {n_raw} medial cells");
+        assert_eq!(components_26(m, s), 1);
+        // Thin: no 2 x 2 block of skeleton cells in any plane.
+        for c in 0..m.len() {
+            let p = grid.unravel(c);
+            if p.iter().zip(&s).any(|(&v, &n)| v + 1 >= n) {
+                continue;
+            }
+            for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+                let mut q = p;
+                let mut all = true;
+                for (da, db) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    q[a] = p[a] + da;
+                    q[b] = p[b] + db;
+                    all &= m[grid.linear(q)];
+                }
+                assert!(!all, "2 x 2 block at {p:?} in axes ({a}, {b})");
+            }
+        }
+        // The deepest cells of the box form the sheet k = 6 (between the
+        // outside cells at k = 1 and 11), i in 7..=20, j in 7..=14; the
+        // skeleton is a curve along the sheet's long axis j = 10.5: every
+        // cell within one cell of it, one or two cells per section, and the
+        // sections contiguous over the middle of the box.
+        let cells: Vec<[usize; 3]> = (0..m.len())
+            .filter(|&c| m[c])
+            .map(|c| grid.unravel(c))
+            .collect();
+        for p in &cells {
+            assert!(
+                (p[1] as f64 - 10.5).abs() <= 1.0 && p[2] == 6,
+                "{p:?} is off the axis"
+            );
+        }
+        let lo_i = cells.iter().map(|p| p[0]).min().unwrap();
+        let hi_i = cells.iter().map(|p| p[0]).max().unwrap();
+        assert!(lo_i <= 12 && hi_i >= 15, "from {lo_i} to {hi_i}");
+        for i in lo_i..=hi_i {
+            let k = cells.iter().filter(|p| p[0] == i).count();
+            assert!((1..=2).contains(&k), "section {i}: {k} cells");
+        }
+    }
+
+    #[test]
+    fn three_d_torus_keeps_its_tunnel() {
+        // Torus of radii 9 and 3.5 around the axis 0 through (16, 16).
+        let s = [12usize, 33, 33];
+        let mask = solid(s, |i, j, k| {
+            let rho = ((j - 16.0).powi(2) + (k - 16.0).powi(2)).sqrt();
+            (rho - 9.0).powi(2) + (i - 6.0).powi(2) <= 3.5 * 3.5
+        });
+        let grid = Grid::unit(&s).unwrap();
+        let sk = medial_axis(&grid, &mask, &SkeletonOptions::default(), &Control::new()).unwrap();
+        let m = &sk.mask;
+        assert_eq!(components_26(m, s), 1);
+        // A closed curve around the hole: cells in each of the 8 octants of
+        // angle, all within 1.5 cells of the core circle.
+        let mut octants = [0usize; 8];
+        for c in (0..m.len()).filter(|&c| m[c]) {
+            let p = grid.unravel(c);
+            let (y, z) = (p[1] as f64 - 16.0, p[2] as f64 - 16.0);
+            let off = ((y.hypot(z) - 9.0).powi(2) + (p[0] as f64 - 6.0).powi(2)).sqrt();
+            assert!(off <= 1.5, "{p:?} is {off} from the core circle");
+            let oct = ((z.atan2(y) + std::f64::consts::PI) / (std::f64::consts::PI / 4.0)) as usize;
+            octants[oct.min(7)] += 1;
+        }
+        assert!(octants.iter().all(|&k| k > 0), "{octants:?}");
+        // Thin: a one-cell-thin digital circle of radius 9 has about 50
+        // cells (the tube holds about 2200).
+        let cells = m.iter().filter(|&&v| v).count();
+        assert!(cells < 80, "{cells} cells");
     }
 
     #[test]
