@@ -145,10 +145,10 @@ struct Term {
     label: i32,
     /// The neighbour's own value (causality check of the factored update).
     a: f64,
-    /// `x − x_j` (index units): `s (U − b) ≈ ⟨∇U, w⟩`.
-    w: [f64; 3],
-    /// `√(c2 / ρ)`: 1, or 3/2 for a second-order difference.
-    s: f64,
+    /// The neighbour `x_j` (`w = x − x_j`: `s (U − b) ≈ ⟨∇U, w⟩`).
+    j: u32,
+    /// A second-order difference: `s = √(c2 / ρ)` is 3/2, else 1.
+    second: bool,
 }
 
 pub(super) fn solve(
@@ -548,15 +548,13 @@ impl Ctx<'_> {
                     }
                 }
                 if best.is_none_or(|t: Term| b < t.b) {
-                    let xj = self.pos(j);
-                    let xy = self.pos(y);
                     best = Some(Term {
                         c2,
                         b,
                         label: labels[j],
                         a,
-                        w: [xy[0] - xj[0], xy[1] - xj[1], xy[2] - xj[2]],
-                        s: (c2 / rho).sqrt(),
+                        j: j as u32,
+                        second: c2 > rho,
                     });
                 }
             }
@@ -601,7 +599,6 @@ impl Ctx<'_> {
                 }
             }
         }
-        let ndim = self.grid.ndim();
         if fp.is_none() {
             return solve_terms(&mut terms[..nt], 1.0);
         }
@@ -618,7 +615,12 @@ impl Ctx<'_> {
             let (root, label, min_a) = solve_terms(&mut terms[..nt], rhs)?;
             if min_a <= root {
                 let plain = (root, label, min_a);
-                return Some(extrapolated(&terms[..nt], &missing[..nm], rhs, ndim, plain));
+                let edge = Edge {
+                    grid: self.grid,
+                    y,
+                    missing: &missing[..nm],
+                };
+                return Some(extrapolated(&terms[..nt], &edge, rhs, plain));
             }
             let mut kept = 0;
             for m in 0..nt {
@@ -679,21 +681,21 @@ fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
 /// root is kept when the terms in use do not span the space, or when the
 /// completed root is not causal (below a neighbour value it used) or not
 /// smaller than the plain one.
-fn extrapolated(
-    t: &[Term],
-    missing: &[(f64, [f64; 3])],
-    rhs: f64,
-    ndim: usize,
-    plain: (f64, i32, f64),
-) -> (f64, i32, f64) {
+fn extrapolated(t: &[Term], edge: &Edge<'_>, rhs: f64, plain: (f64, i32, f64)) -> (f64, i32, f64) {
+    let missing = edge.missing;
     if missing.is_empty() {
         return plain;
     }
+    let ndim = edge.grid.ndim();
     let root = plain.0;
-    let mut buf = [Term::default(); 6];
+    // The terms in use, with `w = x − x_j` and `s`.
+    let mut buf = [(Term::default(), [0.0f64; 3], 0.0f64); 6];
     let mut nu = 0;
+    let x = edge.grid.unravel(edge.y);
     for p in t.iter().filter(|p| p.b < root) {
-        buf[nu] = *p;
+        let xj = edge.grid.unravel(p.j as usize);
+        let w = [0, 1, 2].map(|a| x[a] as f64 - xj[a] as f64);
+        buf[nu] = (*p, w, if p.second { 1.5 } else { 1.0 });
         nu += 1;
     }
     let used = &buf[..nu];
@@ -702,10 +704,10 @@ fn extrapolated(
     }
     // Normal matrix WᵀW (padded axis 0 of a 2D grid set to the identity).
     let mut n = [[0.0f64; 3]; 3];
-    for p in used {
+    for (_, w, _) in used {
         for a in 0..3 {
             for c in 0..3 {
-                n[a][c] += p.w[a] * p.w[c];
+                n[a][c] += w[a] * w[c];
             }
         }
     }
@@ -720,7 +722,7 @@ fn extrapolated(
     // ⟨G(U), e_m⟩ = Σ_k λ_mk s_k (U − b_k), λ_mk = ⟨w_k, (WᵀW)⁻¹ e_m⟩.
     let mut lambda = [[0.0f64; 6]; 6];
     let (mut qa, mut qb, mut qc) = (0.0, 0.0, -rhs);
-    for p in used {
+    for (p, _, _) in used {
         qa += p.c2;
         qb += p.c2 * p.b;
         qc += p.c2 * p.b * p.b;
@@ -733,11 +735,11 @@ fn extrapolated(
             }
         }
         let (mut big_a, mut big_b) = (0.0, 0.0);
-        for (k, p) in used.iter().enumerate() {
-            let l = p.w[0] * ie[0] + p.w[1] * ie[1] + p.w[2] * ie[2];
+        for (k, (p, w, sk)) in used.iter().enumerate() {
+            let l = w[0] * ie[0] + w[1] * ie[1] + w[2] * ie[2];
             lambda[m][k] = l;
-            big_a += l * p.s;
-            big_b += l * p.s * p.b;
+            big_a += l * sk;
+            big_b += l * sk * p.b;
         }
         // ρ (A U − B)².
         qa += rho * big_a * big_a;
@@ -751,8 +753,8 @@ fn extrapolated(
         return plain;
     }
     let r = (qb + disc.sqrt()) / qa;
-    let max_a = used.iter().map(|p| p.a).fold(f64::NEG_INFINITY, f64::max);
-    let max_b = used.iter().map(|p| p.b).fold(f64::NEG_INFINITY, f64::max);
+    let max_a = used.iter().map(|u| u.0.a).fold(f64::NEG_INFINITY, f64::max);
+    let max_b = used.iter().map(|u| u.0.b).fold(f64::NEG_INFINITY, f64::max);
     if !(r.is_finite() && r >= max_a && r > max_b && r <= root) {
         return plain;
     }
@@ -768,15 +770,15 @@ fn extrapolated(
         *gm = used
             .iter()
             .enumerate()
-            .map(|(k, p)| lambda[m][k] * p.s * (r - p.b))
+            .map(|(k, (p, _, sk))| lambda[m][k] * sk * (r - p.b))
             .sum();
     }
     let (mut pos, mut neg) = (0.0, 0.0);
-    for (j, p) in used.iter().enumerate() {
+    for (j, (p, _, sj)) in used.iter().enumerate() {
         let cross: f64 = missing
             .iter()
             .enumerate()
-            .map(|(m, &(rho, _))| rho * g[m] * lambda[m][j] * p.s)
+            .map(|(m, &(rho, _))| rho * g[m] * lambda[m][j] * sj)
             .sum();
         let c = p.c2 * (r - p.b) + cross;
         if c >= 0.0 {
@@ -790,6 +792,14 @@ fn extrapolated(
     } else {
         plain
     }
+}
+
+/// What [`extrapolated`] needs besides the terms: the cell and the offsets
+/// `(ρ_m, e_m)` whose upwind side is outside the grid.
+struct Edge<'a> {
+    grid: &'a Grid,
+    y: usize,
+    missing: &'a [(f64, [f64; 3])],
 }
 
 /// Largest total negative weight `Σ_j max(0, −∂U/∂b_j)` of the completed
@@ -896,8 +906,8 @@ mod tests {
             b,
             label,
             a: b,
-            w: [0.0; 3],
-            s: 1.0,
+            j: 0,
+            second: false,
         }
     }
 
