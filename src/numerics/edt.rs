@@ -350,10 +350,6 @@ fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
     d: &mut [f64],
     feat: Option<&mut [u32]>,
 ) {
-    let block = block_width(width);
-    let Ok(mut dv) = ArrayViewMut2::from_shape((rows, width), d) else {
-        return;
-    };
     let sweep = |c0: usize,
                  mut dc: ndarray::ArrayViewMut2<'_, f64>,
                  mut fc: Option<ndarray::ArrayViewMut2<'_, u32>>| {
@@ -430,24 +426,7 @@ fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
             }
         }
     };
-    match feat {
-        None => {
-            dv.axis_chunks_iter_mut(Axis(1), block)
-                .into_par_iter()
-                .enumerate()
-                .for_each(|(b, dc)| sweep(b * block, dc, None));
-        }
-        Some(f) => {
-            let Ok(mut fv) = ArrayViewMut2::from_shape((rows, width), f) else {
-                return;
-            };
-            dv.axis_chunks_iter_mut(Axis(1), block)
-                .into_par_iter()
-                .zip(fv.axis_chunks_iter_mut(Axis(1), block).into_par_iter())
-                .enumerate()
-                .for_each(|(b, (dc, fc))| sweep(b * block, dc, Some(fc)));
-        }
-    }
+    column_blocks(rows, width, d, feat, sweep);
 }
 
 /// First pass of the binary transform along an axis whose lines are the
@@ -462,10 +441,6 @@ fn row_sweeps(
     d: &mut [f64],
     feat: Option<&mut [u32]>,
 ) {
-    let block = block_width(width);
-    let Ok(mut dv) = ArrayViewMut2::from_shape((rows, width), d) else {
-        return;
-    };
     let sweep = |c0: usize,
                  mut dc: ndarray::ArrayViewMut2<'_, f64>,
                  mut fc: Option<ndarray::ArrayViewMut2<'_, u32>>| {
@@ -527,6 +502,20 @@ fn row_sweeps(
                 }
             }
         }
+    };
+    column_blocks(rows, width, d, feat, sweep);
+}
+
+/// Runs `sweep(c0, d, f)` on the blocks of columns of the `(rows, width)`
+/// C-order matrices `d` (and `feat`), `c0` being a block's first column:
+/// in parallel, with blocks of [`block_width`] columns.
+fn column_blocks<F>(rows: usize, width: usize, d: &mut [f64], feat: Option<&mut [u32]>, sweep: F)
+where
+    F: Fn(usize, ArrayViewMut2<'_, f64>, Option<ArrayViewMut2<'_, u32>>) + Sync,
+{
+    let block = block_width(width);
+    let Ok(mut dv) = ArrayViewMut2::from_shape((rows, width), d) else {
+        return;
     };
     match feat {
         None => {
