@@ -1,6 +1,8 @@
 //! `grid.skeleton`: the medial axis of a binary shape (2D and 3D) with
 //! pruning, its radius function, and in 2D the skeleton graph (see
-//! [`crate::numerics::skeleton`]).
+//! [`crate::numerics::skeleton`]). In 2D the skeleton is one cell thin; in
+//! 3D it is a curve skeleton (medial sheets thinned to curves, topology
+//! kept).
 
 use std::time::Instant;
 
