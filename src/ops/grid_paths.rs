@@ -50,7 +50,7 @@ use crate::io::{render_png, ArrayData, Colormap, RenderOptions, RenderStyle};
 use crate::numerics::anisotropic::descent::Riemannian;
 use crate::numerics::metric::{CostValues, Interpretation};
 use crate::numerics::paths::{
-    CellCost, DescentOptions, DistanceMap, Isotropic, PathError, SourceSet,
+    CellCost, DescentOptions, DistanceMap, Isotropic, MinimalPath, PathError, SourceSet,
 };
 use crate::numerics::{self, Control, EikonalProblem, Grid, IsotropicCost, Source, StopRules};
 
@@ -166,6 +166,23 @@ pub struct PathOut {
     pub continuous_steps: u64,
     /// Discrete steepest-descent steps (where the gradient vanished or was undefined).
     pub discrete_steps: u64,
+}
+
+impl PathOut {
+    /// The answer's form of a descended path (`index` as in [`PathOut::index`]).
+    fn new(index: usize, end: &[f64], path: &MinimalPath, grid: &Grid) -> Self {
+        Self {
+            index,
+            source: path.source,
+            end: end.to_vec(),
+            points: path.index_points(grid),
+            world: path.world_points(grid),
+            geodesic_length: path.geodesic_length,
+            euclidean_length: path.euclidean_length,
+            continuous_steps: path.continuous_steps as u64,
+            discrete_steps: path.discrete_steps as u64,
+        }
+    }
 }
 
 /// The whole path through way-points, or the closed contour.
@@ -796,17 +813,8 @@ pub fn execute(
             let path = dm
                 .descend(&map.sources, end, &Isotropic, &descent)
                 .map_err(|e| path_error(e, field, &*leg.source_field))?;
-            paths.push(PathOut {
-                index: if chain_mode { leg_index } else { end_index },
-                source: path.source,
-                end: end.clone(),
-                points: path.index_points(grid),
-                world: path.world_points(grid),
-                geodesic_length: path.geodesic_length,
-                euclidean_length: path.euclidean_length,
-                continuous_steps: path.continuous_steps as u64,
-                discrete_steps: path.discrete_steps as u64,
-            });
+            let index = if chain_mode { leg_index } else { end_index };
+            paths.push(PathOut::new(index, end, &path, grid));
         }
         descent_seconds += t.elapsed().as_secs_f64();
     }
@@ -920,17 +928,8 @@ fn execute_tensor(
             let path = dm
                 .descend(&set, end, &riemannian, &descent)
                 .map_err(|e| path_error(e, field, &*leg.source_field))?;
-            paths.push(PathOut {
-                index: if chain_mode { leg_index } else { end_index },
-                source: path.source,
-                end: end.clone(),
-                points: path.index_points(grid),
-                world: path.world_points(grid),
-                geodesic_length: path.geodesic_length,
-                euclidean_length: path.euclidean_length,
-                continuous_steps: path.continuous_steps as u64,
-                discrete_steps: path.discrete_steps as u64,
-            });
+            let index = if chain_mode { leg_index } else { end_index };
+            paths.push(PathOut::new(index, end, &path, grid));
         }
         descent_seconds += t.elapsed().as_secs_f64();
     }
