@@ -12,9 +12,10 @@ use ndarray::ArrayD;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::grid_inputs::{check_shape, fetch};
 use super::grid_metric::{apply_design, array_to_f64, DesignSpec};
 use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
-use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::eikonal::{
     Connectivity, EikonalError, EikonalOptions, EikonalProblem, Method, Order, Source, StopReason,
@@ -234,14 +235,8 @@ pub fn resolve_cost(
     control: &Control<'_>,
 ) -> Result<ResolvedCost, OpError> {
     cost.validate(limits)?;
-    let lookup = |field: &str, id: &str| -> Result<InputArray, OpError> {
-        inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
-            field: field.into(),
-            id: id.into(),
-        })
-    };
     let cost_input = match &cost.dataset {
-        Some(id) => Some(lookup("cost.dataset", id)?),
+        Some(id) => Some(fetch(inputs, "cost.dataset", id)?),
         None => None,
     };
     let shape: Vec<usize> = match (&cost_input, &cost.shape) {
@@ -261,7 +256,7 @@ pub fn resolve_cost(
 
     let mask = match obstacles {
         Some(id) => {
-            let m = lookup("obstacles", id)?;
+            let m = fetch(inputs, "obstacles", id)?;
             if m.array.shape() != shape.as_slice() {
                 return Err(OpError::invalid(
                     "obstacles",
@@ -575,29 +570,6 @@ impl GridDistanceRequest {
         o.record_order = self.outputs.frozen_order;
         o
     }
-}
-
-pub(crate) fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), OpError> {
-    if !(2..=3).contains(&shape.len()) {
-        return Err(OpError::invalid(
-            field,
-            format!("the grid must be 2D or 3D, got {} axes", shape.len()),
-        ));
-    }
-    if let Some(k) = shape.iter().position(|&n| n == 0) {
-        return Err(OpError::invalid(
-            format!("{field}[{k}]"),
-            "an axis has length 0",
-        ));
-    }
-    let cells = shape.iter().map(|&n| n as u128).product::<u128>();
-    if cells > limits.max_cells as u128 {
-        return Err(OpError::TooLarge {
-            field: field.into(),
-            reason: format!("{cells} cells, more than the limit of {}", limits.max_cells),
-        });
-    }
-    Ok(())
 }
 
 impl Operation for GridDistanceRequest {

@@ -389,7 +389,7 @@ impl Operation for GridMetricRequest {
                     id: self.dataset.clone(),
                 })?;
         let shape = input.array.shape().to_vec();
-        super::grid_distance::check_shape(&shape, "dataset", limits)?;
+        super::grid_inputs::check_shape(&shape, "dataset", limits)?;
         let spacing = self
             .spacing
             .clone()

@@ -9,7 +9,8 @@ use utoipa::ToSchema;
 use std::time::Instant;
 
 use super::grid_distance::eikonal_error;
-use super::{InputArray, Inputs, OpError, OpLimits};
+use super::grid_inputs::{check_shape, fetch};
+use super::{Inputs, OpError, OpLimits};
 use crate::numerics::anisotropic::height_map::height_map_metric;
 use crate::numerics::anisotropic::structure_tensor::edge_metric;
 use crate::numerics::anisotropic::{
@@ -288,7 +289,7 @@ impl TensorSpec {
         let shape = match self {
             TensorSpec::Components(c) => {
                 let field = format!("{prefix}.dataset");
-                let a = lookup(inputs, &field, &c.dataset)?;
+                let a = fetch(inputs, &field, &c.dataset)?;
                 let s = a.array.shape();
                 let nc = *s.last().unwrap_or(&0);
                 let grid = &s[..s.len().saturating_sub(1)];
@@ -314,7 +315,7 @@ impl TensorSpec {
                 ] {
                     if let ScalarField::Dataset(id) = f {
                         let field = format!("{prefix}.{name}");
-                        let s = lookup(inputs, &field, id)?.array.shape().to_vec();
+                        let s = fetch(inputs, &field, id)?.array.shape().to_vec();
                         match &shape {
                             Some(prev) if *prev != s => {
                                 return Err(OpError::invalid(
@@ -336,11 +337,11 @@ impl TensorSpec {
                 }
                 shape
             }
-            TensorSpec::StructureTensor(s) => lookup(inputs, &format!("{prefix}.image"), &s.image)?
+            TensorSpec::StructureTensor(s) => fetch(inputs, &format!("{prefix}.image"), &s.image)?
                 .array
                 .shape()
                 .to_vec(),
-            TensorSpec::HeightMap(h) => lookup(inputs, &format!("{prefix}.heights"), &h.heights)?
+            TensorSpec::HeightMap(h) => fetch(inputs, &format!("{prefix}.heights"), &h.heights)?
                 .array
                 .shape()
                 .to_vec(),
@@ -379,7 +380,7 @@ impl TensorSpec {
         prefix: &str,
     ) -> Result<TensorField, OpError> {
         let values = |field: &str, id: &str| -> Result<Vec<f64>, OpError> {
-            let a = lookup(inputs, field, id)?;
+            let a = fetch(inputs, field, id)?;
             let n = a.array.len();
             let v: Option<Vec<f64>> = (0..n).map(|i| a.array.get_f64(i)).collect();
             match (a.array.dtype(), v) {
@@ -476,37 +477,6 @@ pub fn tensor_error(e: TensorError, prefix: &str) -> OpError {
     OpError::invalid(field, e.to_string())
 }
 
-fn lookup(inputs: &dyn Inputs, field: &str, id: &str) -> Result<InputArray, OpError> {
-    inputs.get(id).ok_or_else(|| OpError::UnknownDataset {
-        field: field.into(),
-        id: id.into(),
-    })
-}
-
-/// Checks a grid shape (2 or 3 axes, none empty, within the cell limit).
-pub fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<(), OpError> {
-    if !(2..=3).contains(&shape.len()) {
-        return Err(OpError::invalid(
-            field,
-            format!("the grid must be 2D or 3D, got {} axes", shape.len()),
-        ));
-    }
-    if let Some(k) = shape.iter().position(|&n| n == 0) {
-        return Err(OpError::invalid(
-            format!("{field}[{k}]"),
-            "an axis has length 0",
-        ));
-    }
-    let cells = shape.iter().map(|&n| n as u128).product::<u128>();
-    if cells > limits.max_cells as u128 {
-        return Err(OpError::TooLarge {
-            field: field.into(),
-            reason: format!("{cells} cells, more than the limit of {}", limits.max_cells),
-        });
-    }
-    Ok(())
-}
-
 /// Components per cell of a grid of this dimension (re-exported for callers).
 pub fn per_cell(ndim: usize) -> usize {
     components(ndim)
@@ -552,7 +522,7 @@ pub fn resolve_tensor(
     })?;
     let mut metric = spec.build(&grid, inputs, prefix)?;
     if let Some(id) = obstacles {
-        let m = lookup(inputs, "obstacles", id)?;
+        let m = fetch(inputs, "obstacles", id)?;
         if m.array.shape() != shape.as_slice() {
             return Err(OpError::invalid(
                 "obstacles",
