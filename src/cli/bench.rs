@@ -19,8 +19,10 @@
 //! * `point3d-N`: unit cost on `[0, 1]^3`, point source at the centre.
 //!
 //! Variants: `o1` (first order, no source factoring: the scheme of
-//! scikit-fmm), `o2` (second order with factoring), `c4`/`c8`/`c16`
-//! (`c6`/`c18`/`c26` in 3D) for Dijkstra's neighbourhoods.
+//! scikit-fmm), `o2` (second order with factoring), `o2plain` (second order
+//! without factoring: the scheme of scikit-fmm's order 2, for the point
+//! sources), `c4`/`c8`/`c16` (`c6`/`c18`/`c26` in 3D) for Dijkstra's
+//! neighbourhoods.
 //!
 //! # Peak memory
 //! Each case runs in a child process (`geodex bench --single NAME`), so that
@@ -131,6 +133,9 @@ struct Case {
     method: Method,
     order: Order,
     connectivity: Connectivity,
+    /// Source factoring (fast marching and sweeping): on for order 2 by
+    /// default; the `o2plain` cases turn it off (scikit-fmm's scheme).
+    factoring: bool,
 }
 
 impl Case {
@@ -152,9 +157,10 @@ impl Case {
                 };
                 format!("c{k}")
             }
-            _ => match self.order {
-                Order::First => "o1".into(),
-                Order::Second => "o2".into(),
+            _ => match (self.order, self.factoring) {
+                (Order::First, _) => "o1".into(),
+                (Order::Second, true) => "o2".into(),
+                (Order::Second, false) => "o2plain".into(),
             },
         };
         format!("{}-{}-{method}-{variant}", self.kind.name(), self.n)
@@ -165,8 +171,9 @@ impl Case {
             .with_method(self.method)
             .with_order(self.order)
             // Order 1 without factoring is the scheme of scikit-fmm; order 2
-            // with factoring is the accurate default.
-            .with_factoring(self.order == Order::Second)
+            // with factoring is the accurate default (`o2plain`: without,
+            // scikit-fmm's order-2 scheme).
+            .with_factoring(self.factoring)
             .with_connectivity(self.connectivity)
     }
 }
@@ -186,12 +193,19 @@ fn all_cases(quick: bool) -> Vec<Case> {
         method,
         order,
         connectivity,
+        factoring: order == Second,
+    };
+    // Order 2 without factoring, the scheme scikit-fmm's order 2 runs.
+    let plain = |kind, n| Case {
+        factoring: false,
+        ..case(kind, n, Fmm, Second, Diagonal)
     };
     let mut out = Vec::new();
     for &n in &sizes2 {
         for order in [First, Second] {
             out.push(case(Kind::Point2, n, Fmm, order, Diagonal));
         }
+        out.push(plain(Kind::Point2, n));
     }
     for kind in [Kind::Poincare2, Kind::Random2] {
         for order in [First, Second] {
@@ -202,6 +216,7 @@ fn all_cases(quick: bool) -> Vec<Case> {
         for order in [First, Second] {
             out.push(case(Kind::Point3, n, Fmm, order, Diagonal));
         }
+        out.push(plain(Kind::Point3, n));
     }
     for kind in [Kind::Point2, Kind::Poincare2, Kind::Random2] {
         for order in [First, Second] {
@@ -587,6 +602,27 @@ mod tests {
     }
 
     #[test]
+    fn plain_order_two_cases_turn_factoring_off() {
+        let cases = all_cases(true);
+        let find = |name: &str| {
+            let c = cases.iter().find(|c| c.name() == name);
+            c.cloned().unwrap_or_else(|| panic!("no case {name}"))
+        };
+        let factored = find("point2d-256-fmm-o2");
+        let plain = find("point2d-256-fmm-o2plain");
+        assert!(factored.options().factoring && !plain.options().factoring);
+        assert_eq!(plain.options().order, Order::Second);
+        assert!(cases.iter().any(|c| c.name() == "point3d-48-fmm-o2plain"));
+        // Unit cost: factoring makes order 2 exact to rounding; without it
+        // the point source costs O(h) near p.
+        let small = |c: Case| Case { n: 33, ..c };
+        let e_factored = measure(&small(factored), 1).unwrap().max_error.unwrap();
+        let e_plain = measure(&small(plain), 1).unwrap().max_error.unwrap();
+        assert!(e_factored < 1e-12, "{e_factored}");
+        assert!(e_plain > 1e-4, "{e_plain}");
+    }
+
+    #[test]
     fn exact_solutions_vanish_at_the_sources() {
         // Point source at the centre of a 5^3 grid: U(2,2,2) = 0, U(0,2,2) = 2h.
         let s = setup(Kind::Point3, 5).unwrap();
@@ -621,6 +657,7 @@ mod tests {
             method: Method::Dijkstra,
             order: Order::First,
             connectivity: Connectivity::Diagonal,
+            factoring: false,
         };
         let m = measure(&case, 1).unwrap();
         assert_eq!(m.frozen, 33 * 33);
