@@ -252,41 +252,9 @@ fn squared_binary(
     features: bool,
     control: &Control<'_>,
 ) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
-    let shape = grid.shape3();
-    let h = grid.spacing3();
-    let axes = active_axes(shape);
-    let n = grid.len();
-    let mut d = vec![0.0f64; n];
-    let mut feat = features.then(|| vec![NO_FEATURE; n]);
-    let first = axes[0];
-    row_sweeps(
-        shape[first],
-        n / shape[first],
-        h[first],
-        mask,
-        &mut d,
-        feat.as_deref_mut(),
-    );
-    control.report(1.0 / axes.len() as f64);
-    for (k, &axis) in axes.iter().enumerate().skip(1) {
-        if control.is_cancelled() {
-            return Err(EdtError::Cancelled);
-        }
-        envelope_pass::<bool>(
-            shape,
-            axis,
-            h[axis],
-            &mut d,
-            feat.as_deref_mut(),
-            None,
-            control,
-        );
-        control.report((k + 1) as f64 / axes.len() as f64);
-    }
-    if control.is_cancelled() {
-        return Err(EdtError::Cancelled);
-    }
-    Ok((d, feat))
+    squared_by_axes::<bool>(grid, None, features, control, |rows, width, h, d, f| {
+        row_sweeps(rows, width, h, mask, d, f)
+    })
 }
 
 fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
@@ -295,21 +263,40 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
     features: bool,
     control: &Control<'_>,
 ) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
+    squared_by_axes(
+        grid,
+        Some(labels),
+        features,
+        control,
+        |rows, width, h, d, f| label_row_sweeps(rows, width, h, labels, d, f),
+    )
+}
+
+/// The squared transform, one axis at a time. The outermost axis goes
+/// first, swept over whole rows by `first_pass(rows, width, h, d, features)`
+/// (memory read in order, no gather; with no distance yet, its pass is a
+/// 1D distance along columns); then each other axis takes the lower
+/// envelope of the parabolas of the previous passes, among cells of equal
+/// label when `labels` is given. Progress after each axis; cancellation
+/// between axes.
+fn squared_by_axes<L: Copy + PartialEq + Send + Sync>(
+    grid: &Grid,
+    labels: Option<&[L]>,
+    features: bool,
+    control: &Control<'_>,
+    first_pass: impl FnOnce(usize, usize, f64, &mut [f64], Option<&mut [u32]>),
+) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
     let shape = grid.shape3();
     let h = grid.spacing3();
-    // The outermost axis goes first, swept over whole rows (memory read in
-    // order, no gather): with no distance yet, its pass is the distance to
-    // the two cells that bound each run of equal labels.
     let axes = active_axes(shape);
     let n = grid.len();
     let mut d = vec![0.0f64; n];
     let mut feat = features.then(|| vec![NO_FEATURE; n]);
     let first = axes[0];
-    label_row_sweeps(
+    first_pass(
         shape[first],
         n / shape[first],
         h[first],
-        labels,
         &mut d,
         feat.as_deref_mut(),
     );
@@ -324,7 +311,7 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
             h[axis],
             &mut d,
             feat.as_deref_mut(),
-            Some(labels),
+            labels,
             control,
         );
         control.report((k + 1) as f64 / axes.len() as f64);
