@@ -336,17 +336,46 @@ impl March<'_> {
             }
 
             let idx = st.unravel(i);
-            for &k in kernel.axes(st) {
-                let s = st.strides[k];
-                if idx[k] > 0 {
-                    self.visit(kernel, i - s, idx, k, idx[k] - 1);
+            // Constant axis numbers for the usual 2D and 3D grids, so that
+            // the index stays in registers (a loop over the axes is not
+            // unrolled: its body is too large).
+            match K::AXES {
+                2 => {
+                    self.visit_axis::<K, 1>(kernel, i, idx);
+                    self.visit_axis::<K, 2>(kernel, i, idx);
                 }
-                if idx[k] + 1 < st.shape[k] {
-                    self.visit(kernel, i + s, idx, k, idx[k] + 1);
+                3 => {
+                    self.visit_axis::<K, 0>(kernel, i, idx);
+                    self.visit_axis::<K, 1>(kernel, i, idx);
+                    self.visit_axis::<K, 2>(kernel, i, idx);
+                }
+                _ => {
+                    for &k in st.axes() {
+                        let s = st.strides[k];
+                        if idx[k] > 0 {
+                            self.visit(kernel, i - s, idx, k, idx[k] - 1);
+                        }
+                        if idx[k] + 1 < st.shape[k] {
+                            self.visit(kernel, i + s, idx, k, idx[k] + 1);
+                        }
+                    }
                 }
             }
         };
         Ok((stop, frozen))
+    }
+
+    /// Visits the two neighbours of cell `i` (padded index `idx`) along axis `AX`.
+    #[inline(always)]
+    fn visit_axis<K: Kernel, const AX: usize>(&mut self, kernel: &K, i: usize, idx: [usize; 3]) {
+        let st = self.st;
+        let s = st.strides[AX];
+        if idx[AX] > 0 {
+            self.visit(kernel, i - s, idx, AX, idx[AX] - 1);
+        }
+        if idx[AX] + 1 < st.shape[AX] {
+            self.visit(kernel, i + s, idx, AX, idx[AX] + 1);
+        }
     }
 
     /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
@@ -374,11 +403,9 @@ trait Kernel {
     /// cell gets label 0 at the end.
     const LABELS: bool;
 
-    /// The axes of length > 1 ([`Stencil::axes`] or a constant equivalent).
-    #[inline(always)]
-    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
-        st.axes()
-    }
+    /// The number of axes when they are the last `AXES` padded axes
+    /// ([`Stencil::trailing`]), 0 for any other layout.
+    const AXES: usize;
 
     /// The new value and label of cell `j` (padded index `jdx`), or `None`;
     /// `u` is finite exactly on the frozen cells (NaN or `+inf` elsewhere).
@@ -398,11 +425,7 @@ struct General<'a, const ONE: bool, const A: usize> {
 
 impl<const ONE: bool, const A: usize> Kernel for General<'_, ONE, A> {
     const LABELS: bool = !ONE;
-
-    #[inline(always)]
-    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
-        st.axes_as::<A>()
-    }
+    const AXES: usize = A;
 
     #[inline]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
@@ -465,11 +488,7 @@ struct FirstOrder<'a, C, const A: usize> {
 
 impl<C: CostAt, const A: usize> Kernel for FirstOrder<'_, C, A> {
     const LABELS: bool = false;
-
-    #[inline(always)]
-    fn axes<'s>(&self, st: &'s Stencil) -> &'s [usize] {
-        st.axes_as::<A>()
-    }
+    const AXES: usize = A;
 
     #[inline(always)]
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
