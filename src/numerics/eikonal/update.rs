@@ -503,10 +503,17 @@ pub(super) fn first_order<const A: usize>(
     u: &[f64],
     one_axis: impl Fn(usize) -> f64,
 ) -> Option<f64> {
-    // (b_k, c_k², h_k, k) of the axes with a known neighbour, in axis order.
-    let mut t = [(0.0f64, 0.0f64, 0.0f64, 0usize); 3];
-    let mut n = 0;
-    for &k in st.axes_as::<A>() {
+    // Per axis slot: the smaller known neighbour value `b` (+inf when the
+    // axis has none), `c²`, `h` and the axis. Fixed slots with constant
+    // indices (no compaction, a sorting network instead of an insertion
+    // sort) keep all of it in registers: the sort of a compacted array went
+    // through the stack, and its stores could not be forwarded to the wider
+    // loads of the swaps.
+    let mut b = [f64::INFINITY; 3];
+    let mut c = [0.0f64; 3];
+    let mut hs = [0.0f64; 3];
+    let mut ks = [0usize; 3];
+    for (slot, &k) in st.axes_as::<A>().iter().enumerate() {
         let s = st.strides[k];
         // `<` is false for NaN and +inf: unknown neighbours drop out.
         let mut a = f64::INFINITY;
@@ -516,32 +523,43 @@ pub(super) fn first_order<const A: usize>(
         if idx[k] + 1 < st.shape[k] && u[i + s] < a {
             a = u[i + s];
         }
-        if a < f64::INFINITY {
-            t[n] = (a, st.inv_h2[k], st.h[k], k);
-            n += 1;
-        }
+        b[slot] = a;
+        c[slot] = st.inv_h2[k];
+        hs[slot] = st.h[k];
+        ks[slot] = k;
     }
-    let t = &mut t[..n];
-    // Stable insertion sort by b (as `solve_terms`).
-    for a in 1..t.len() {
-        let mut b = a;
-        while b > 0 && t[b].0 < t[b - 1].0 {
-            t.swap(b, b - 1);
-            b -= 1;
+    // Stable sort by `b` (as `solve_terms`): unknown axes (+inf) go last,
+    // the known ones keep their axis order among equal values.
+    let mut swap_if_less = |x: usize, y: usize| {
+        if b[y] < b[x] {
+            b.swap(x, y);
+            c.swap(x, y);
+            hs.swap(x, y);
+            ks.swap(x, y);
         }
+    };
+    swap_if_less(0, 1);
+    swap_if_less(1, 2);
+    swap_if_less(0, 1);
+    let b0 = b[0];
+    if b0 == f64::INFINITY {
+        return None;
     }
-    let b0 = t.first()?.0;
     let w2 = w * w;
     // The root with the first term alone, `√(c² W²) / c²` (what
     // `solve_terms` computes at its first step).
-    let r0 = one_axis(t[0].3);
-    let root = if let [_, (b1, c1, _, _)] = *t {
+    let r0 = one_axis(ks[0]);
+    // The root of the causal leading terms: a term is added while the
+    // root without it lies above its `b` (as `solve_terms`).
+    let root = if b[1] == f64::INFINITY {
+        Some(r0)
+    } else if b[2] == f64::INFINITY {
         // Two terms: the two-term root is computed alongside `r0` (two
         // independent chains), then the causal one is kept.
-        let d = b1 - b0;
-        let sa = t[0].1 + c1;
-        let sb = c1 * d;
-        let sc = c1 * d * d;
+        let d = b[1] - b0;
+        let sa = c[0] + c[1];
+        let sb = c[1] * d;
+        let sc = c[1] * d * d;
         let disc = sb * sb - sa * (sc - w2);
         let v2 = (sb + disc.sqrt()) / sa;
         if r0 <= d {
@@ -551,30 +569,35 @@ pub(super) fn first_order<const A: usize>(
         } else {
             Some(v2)
         }
+    } else if r0 <= b[1] - b0 {
+        Some(r0)
     } else {
-        let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
-        let mut root = None;
-        for m in 0..t.len() {
-            let (b, c2, _, _) = t[m];
-            let d = b - b0;
-            sa += c2;
-            sb += c2 * d;
-            sc += c2 * d * d;
-            let v = if m == 0 {
-                r0
+        // Three terms: add the second, then the third if the root of two
+        // is not causal.
+        let d1 = b[1] - b0;
+        let mut sa = c[0] + c[1];
+        let mut sb = c[1] * d1;
+        let mut sc = c[1] * d1 * d1;
+        let disc = sb * sb - sa * (sc - w2);
+        if disc.is_nan() || disc < 0.0 {
+            None
+        } else {
+            let v = (sb + disc.sqrt()) / sa;
+            if v <= b[2] - b0 {
+                Some(v)
             } else {
+                let d2 = b[2] - b0;
+                sa += c[2];
+                sb += c[2] * d2;
+                sc += c[2] * d2 * d2;
                 let disc = sb * sb - sa * (sc - w2);
                 if disc.is_nan() || disc < 0.0 {
-                    break;
+                    None
+                } else {
+                    Some((sb + disc.sqrt()) / sa)
                 }
-                (sb + disc.sqrt()) / sa
-            };
-            if m + 1 == t.len() || v <= t[m + 1].0 - b0 {
-                root = Some(v);
-                break;
             }
         }
-        root
     };
     if let Some(v) = root {
         let v = b0 + v;
@@ -583,9 +606,9 @@ pub(super) fn first_order<const A: usize>(
         }
     }
     // Only reached through overflow or rounding: the one-axis update.
-    let v = t
-        .iter()
-        .map(|&(a, _, h, _)| a + w * h)
+    let v = (0..3)
+        .filter(|&m| b[m] < f64::INFINITY)
+        .map(|m| b[m] + w * hs[m])
         .min_by(|x, y| x.total_cmp(y))?;
     v.is_finite().then_some(v)
 }
@@ -907,6 +930,71 @@ mod tests {
         assert_eq!(t(&[5, 1, 9]), None);
         assert_eq!(t(&[5, 1]), None);
         assert_eq!(t(&[1, 1]), None);
+    }
+
+    /// A neighbour value for the kernel comparison: unknown (NaN or +inf),
+    /// one of a few shared values (ties), or any value in [0, 3).
+    fn neighbour() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+            Just(1.0),
+            Just(1.25),
+            0.0f64..3.0,
+        ]
+    }
+
+    proptest::proptest! {
+        /// The first-order kernel of fast marching gives the very bits of
+        /// the general update (first order, no factoring), whatever the
+        /// known neighbours, ties, spacing and cost, with its axis loop
+        /// unrolled or not.
+        #[test]
+        fn first_order_kernel_matches_the_general_update(
+            three in proptest::bool::ANY,
+            vals in proptest::collection::vec(neighbour(), 6),
+            h in proptest::collection::vec(0.25f64..2.0, 3),
+            w in 0.1f64..4.0,
+        ) {
+            let (shape, spacing): (Vec<usize>, Vec<f64>) = if three {
+                (vec![3, 3, 3], h.clone())
+            } else {
+                (vec![3, 3], h[..2].to_vec())
+            };
+            let g = Grid::new(&shape, &spacing).unwrap();
+            let st = Stencil::new(&g);
+            let x = [usize::from(three), 1, 1];
+            let i = g.linear(x);
+            let mut u = vec![f64::INFINITY; g.len()];
+            for (n, &k) in st.axes().iter().enumerate() {
+                u[i - st.strides[k]] = vals[2 * n];
+                u[i + st.strides[k]] = vals[2 * n + 1];
+            }
+            let general = update::<0, _, _>(
+                &st,
+                i,
+                x,
+                w,
+                &u,
+                &OneSource,
+                |j| u[j] < f64::INFINITY,
+                false,
+                None,
+                false,
+                &IsotropicCost::constant(w).unwrap(),
+            )
+            .map(|r| r.0.to_bits());
+            let one = |k| one_axis_root(&st, k, w);
+            let unrolled = if three {
+                first_order::<3>(&st, i, x, w, &u, one)
+            } else {
+                first_order::<2>(&st, i, x, w, &u, one)
+            };
+            proptest::prop_assert_eq!(unrolled.map(f64::to_bits), general);
+            let generic = first_order::<0>(&st, i, x, w, &u, one);
+            proptest::prop_assert_eq!(generic.map(f64::to_bits), general);
+        }
     }
 
     #[test]
