@@ -193,25 +193,14 @@ impl<'a> IsotropicCost<'a> {
     }
 
     /// Asks the processor to bring the cost of cell `i` into the cache (a
-    /// hint: nothing for a constant cost or on other architectures than
-    /// x86-64; `i` may be out of range, nothing is read).
+    /// hint: nothing for a constant cost, an index out of range or on other
+    /// architectures than x86-64).
     #[inline(always)]
     pub fn prefetch(&self, i: usize) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            let p: *const i8 = match &self.values {
-                CostValues::Constant(_) => return,
-                CostValues::F32(s) => s.as_ptr().wrapping_add(i).cast(),
-                CostValues::F64(s) => s.as_ptr().wrapping_add(i).cast(),
-            };
-            // SAFETY: `prefetcht0` is a hint: it never faults, whatever the
-            // address, and changes no memory. `_mm_prefetch` is unsafe only
-            // for its `target_feature(enable = "sse")`, which every x86-64
-            // has. Measured reason: fast marching prefetches the costs of the
-            // rows its front enters (`prefetch_rows`): Poincaré 1024² order 2
-            // 0.131-0.137 s without, 0.113-0.130 s with; random cost 1024²
-            // order 2 -4 % (interleaved A/B, best of 5).
-            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p) };
+        match &self.values {
+            CostValues::Constant(_) => {}
+            CostValues::F32(s) => super::prefetch::prefetch(s, i),
+            CostValues::F64(s) => super::prefetch::prefetch(s, i),
         }
     }
 

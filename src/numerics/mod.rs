@@ -44,6 +44,7 @@ pub mod metric;
 pub mod metric_design;
 pub mod paths;
 pub mod planning;
+pub mod prefetch;
 pub mod segmentation;
 pub mod skeleton;
 

@@ -501,23 +501,31 @@ impl CostAt for &IsotropicCost<'_> {
     }
 }
 
-/// Prefetches the costs of the cells two steps away from frozen cell `i`
-/// (index `idx`) across rows (axes 0 and 1 of the padded shape): they are
-/// visited soon, and their cost is otherwise read in a line the front has
-/// not touched yet (a cache miss per row entered). Along the rows the
-/// hardware prefetcher sees the stream itself.
+/// Calls `f` with the cells two steps away from cell `i` (index `idx`)
+/// across rows (axes 0 and 1 of the padded shape). They are visited soon
+/// after `i` is frozen, and their cost lies in lines the front has not
+/// touched yet (a cache miss per row entered; their `U` lines are already
+/// read by the updates of the cells in between, and prefetching those as
+/// well measured nothing). Along the rows the hardware prefetcher sees the
+/// stream itself.
 #[inline(always)]
-fn prefetch_rows(st: &Stencil, cost: &IsotropicCost<'_>, i: usize, idx: [usize; 3]) {
+fn two_rows_away(st: &Stencil, i: usize, idx: [usize; 3], mut f: impl FnMut(usize)) {
     for ((&x, &n), &s) in idx.iter().zip(&st.shape).zip(&st.strides).take(2) {
         if n > 1 {
             if x >= 2 {
-                cost.prefetch(i - 2 * s);
+                f(i - 2 * s);
             }
             if x + 2 < n {
-                cost.prefetch(i + 2 * s);
+                f(i + 2 * s);
             }
         }
     }
+}
+
+/// Prefetches the costs of the cells [`two_rows_away`] from frozen cell `i`.
+#[inline(always)]
+fn prefetch_rows(st: &Stencil, cost: &IsotropicCost<'_>, i: usize, idx: [usize; 3]) {
+    two_rows_away(st, i, idx, |j| cost.prefetch(j));
 }
 
 /// The first-order unfactored update for one source ([`first_order`]);
