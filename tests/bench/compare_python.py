@@ -177,11 +177,13 @@ def main():
     except ImportError:
         sys.exit("compare_python: eikonalfm is missing (see the module docstring)")
     n2, n3, np2 = (256, 48, 256) if ARGS.quick else (2048, 256, 1024)
-    for batch in (
-        lambda: point_cases(skfmm, n2, 2),
-        lambda: point_cases(skfmm, n3, 3),
-        lambda: poincare_cases(eikonalfm, np2),
+    for name, batch in (
+        ("point2d", lambda: point_cases(skfmm, n2, 2)),
+        ("point3d", lambda: point_cases(skfmm, n3, 3)),
+        ("poincare2d", lambda: poincare_cases(eikonalfm, np2)),
     ):
+        if ARGS.only and name not in ARGS.only:
+            continue
         for row in batch():
             rows.append(row)
             if not ARGS.table:
@@ -194,6 +196,12 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs")
     parser.add_argument("--quick", action="store_true", help="small grids only")
+    parser.add_argument(
+        "--only",
+        action="append",
+        choices=["point2d", "point3d", "poincare2d"],
+        help="run only this family of cases (repeatable; all by default)",
+    )
     parser.add_argument("--table", action="store_true", help="a table instead of JSON lines")
     parser.add_argument("--json", action="store_true", help="JSON lines (the default)")
     parser.add_argument(
