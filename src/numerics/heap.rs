@@ -8,7 +8,8 @@
 //! the entry vector only grows (amortised) as the band widens.
 //!
 //! Memory: 4 bytes per cell for the positions, plus 16 bytes per cell in the
-//! band (key `f64` and index `u32`, padded).
+//! band (the key's bits as an ordered `i64`, see `ord`, and the index `u32`,
+//! padded).
 //!
 //! Tags: a cell that is not in the heap may carry one of 16 reserved values
 //! in its position slot ([`FIRST_TAG`]`..=`[`ABSENT`], [`ABSENT`] being the
@@ -16,8 +17,9 @@
 //! in the same 4 bytes and read it together with the heap position: one
 //! cache line per neighbour visited instead of two.
 //!
-//! Keys must not be NaN (callers never push NaN; a NaN key is ordered
-//! arbitrarily but never breaks the heap's memory safety).
+//! Keys are ordered by the IEEE 754 total order, which is `<` on every
+//! number except that `-0.0` comes before `+0.0`; a NaN key (callers never
+//! push one) is ordered by its bits, beyond the infinities.
 //!
 //! # Examples
 //! ```
@@ -57,10 +59,10 @@ struct Entry {
 /// The bits of `k` as an integer with the same order as `k` (IEEE 754
 /// total order: `-0.0 < +0.0`, NaNs at the ends): the sign-magnitude bits
 /// of a negative number are turned into two's complement by flipping all
-/// but the sign bit. The heap compares these integers: an integer compare
-/// and a conditional move take 2 cycles where a float compare feeding a
-/// conditional move takes about 5, and the walk down of a pop is a chain of
-/// such steps. The map is its own inverse.
+/// but the sign bit. The heap compares these integers: the walk down of a
+/// pop is a chain of compare-and-select steps, and an integer compare
+/// feeds a conditional move sooner than a float compare (2048² fast
+/// marching of order 1: 2-5 % faster). The map is its own inverse.
 #[inline(always)]
 fn ord(k: f64) -> i64 {
     let b = k.to_bits() as i64;
