@@ -501,32 +501,26 @@ impl CostAt for &IsotropicCost<'_> {
     }
 }
 
-/// Calls `f` with the cells four steps away from cell `i` (index `idx`)
-/// across rows (axes 0 and 1 of the padded shape). They are visited soon
-/// after `i` is frozen, and their cost lies in lines the front has not
-/// touched yet (a cache miss per row entered; their `U` lines are already
-/// read by the updates of the cells in between, and prefetching those as
-/// well measured nothing). Four rows ahead measured a few per cent faster
-/// than two on the Poincaré case, eight the same as four within the noise.
-/// Along the rows the hardware prefetcher sees the stream itself.
+/// Prefetches the costs of the cells four steps away from frozen cell `i`
+/// (index `idx`) across rows (axes 0 and 1 of the padded shape). They are
+/// visited soon, and their cost lies in lines the front has not touched yet
+/// (a cache miss per row entered; their `U` lines are already read by the
+/// updates of the cells in between, and prefetching those as well measured
+/// nothing). Four rows ahead measured a few per cent faster than two on the
+/// Poincaré case, eight the same as four within the noise. Along the rows
+/// the hardware prefetcher sees the stream itself.
 #[inline(always)]
-fn rows_ahead(st: &Stencil, i: usize, idx: [usize; 3], mut f: impl FnMut(usize)) {
+fn prefetch_rows(st: &Stencil, cost: &IsotropicCost<'_>, i: usize, idx: [usize; 3]) {
     for ((&x, &n), &s) in idx.iter().zip(&st.shape).zip(&st.strides).take(2) {
         if n > 1 {
             if x >= 4 {
-                f(i - 4 * s);
+                cost.prefetch(i - 4 * s);
             }
             if x + 4 < n {
-                f(i + 4 * s);
+                cost.prefetch(i + 4 * s);
             }
         }
     }
-}
-
-/// Prefetches the costs of the cells [`rows_ahead`] of frozen cell `i`.
-#[inline(always)]
-fn prefetch_rows(st: &Stencil, cost: &IsotropicCost<'_>, i: usize, idx: [usize; 3]) {
-    rows_ahead(st, i, idx, |j| cost.prefetch(j));
 }
 
 /// The first-order unfactored update for one source ([`first_order`]);
