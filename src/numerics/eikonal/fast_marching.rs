@@ -22,6 +22,13 @@
 //!   from it (the scheme then solves for a smooth `V = U − U_0`), and the
 //!   second-order convergence of the whole map needs it everywhere.
 //!
+//! Three kernels compute the band values, all with the update of
+//! [`super::update`]: `FirstOrder` (one source, first order, no factoring),
+//! `OneSourceKernel` (one source, order 2 or factoring) and `General`
+//! (several sources, with labels). The first two are specialisations in
+//! fixed axis slots that give the very bits of the general update (checked
+//! by proptests in `update.rs`); they exist for speed only.
+//!
 //! Walls (`W = +inf`) are never updated. Cells that cannot be reached keep
 //! `U = +inf` and label `-1`. Voronoi labels: a cell takes the label of the
 //! upwind neighbour with the smallest value used in its update.
@@ -40,7 +47,7 @@
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{first_order, one_axis_root, update, Factor, OneSource, Stencil};
+use super::update::{first_order, one_axis_root, one_source, update, Factor, FactorPoint, Stencil};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
@@ -174,22 +181,25 @@ pub(super) fn solve(
             }
             None => m.run_first_order(cost, options, control)?,
         }
-    } else {
-        let factor = factor.as_ref();
-        match (multi, st.trailing()) {
-            (true, _) => {
-                m.run_general::<false, 0>(&st, cost, second, factor, multi, options, control)?
+    } else if !multi {
+        // One source, order 2 or factoring: the fixed-slot kernel.
+        let point = factor.as_ref().and_then(|f| f.point(0));
+        match cost.uniform_value() {
+            Some(w) => {
+                let one = [0, 1, 2].map(|k| one_axis_root(&st, k, w));
+                m.run_one_source(Uniform { w, one }, second, point, options, control)?
             }
-            (false, Some(2)) => {
-                m.run_general::<true, 2>(&st, cost, second, factor, multi, options, control)?
-            }
-            (false, Some(3)) => {
-                m.run_general::<true, 3>(&st, cost, second, factor, multi, options, control)?
-            }
-            (false, _) => {
-                m.run_general::<true, 0>(&st, cost, second, factor, multi, options, control)?
-            }
+            None => m.run_one_source(cost, second, point, options, control)?,
         }
+    } else {
+        // Several sources: the general kernel, with labels.
+        let kernel = General {
+            st: &st,
+            cost,
+            second,
+            factor: factor.as_ref(),
+        };
+        m.run(&kernel, options, control)?
     };
     let March {
         mut labels,
@@ -240,29 +250,6 @@ struct March<'a> {
 }
 
 impl March<'_> {
-    /// [`March::run`] with the general kernel; `ONE` for one source, `A`
-    /// for unrolled axis loops ([`Stencil::axes_as`]).
-    #[allow(clippy::too_many_arguments)]
-    fn run_general<const ONE: bool, const A: usize>(
-        &mut self,
-        st: &Stencil,
-        cost: &IsotropicCost<'_>,
-        second: bool,
-        factor: Option<&Factor>,
-        multi: bool,
-        options: &EikonalOptions,
-        control: &Control<'_>,
-    ) -> Result<(StopReason, usize), EikonalError> {
-        let kernel = General::<ONE, A> {
-            st,
-            cost,
-            second,
-            factor,
-            multi,
-        };
-        self.run(&kernel, options, control)
-    }
-
     /// [`March::run`] with the first-order kernel, its axis loops unrolled
     /// for the usual 2D and 3D grids.
     fn run_first_order<C: CostAt>(
@@ -276,6 +263,47 @@ impl March<'_> {
             Some(2) => self.run(&FirstOrder::<C, 2> { st, cost }, options, control),
             Some(3) => self.run(&FirstOrder::<C, 3> { st, cost }, options, control),
             _ => self.run(&FirstOrder::<C, 0> { st, cost }, options, control),
+        }
+    }
+
+    /// [`March::run`] with the one-source kernel of order 2 or factoring.
+    fn run_one_source<C: CostAt>(
+        &mut self,
+        cost: C,
+        second: bool,
+        point: Option<FactorPoint>,
+        options: &EikonalOptions,
+        control: &Control<'_>,
+    ) -> Result<(StopReason, usize), EikonalError> {
+        let st = self.st;
+        match st.trailing() {
+            Some(2) => {
+                let k = OneSourceKernel::<C, 2> {
+                    st,
+                    cost,
+                    second,
+                    point,
+                };
+                self.run(&k, options, control)
+            }
+            Some(3) => {
+                let k = OneSourceKernel::<C, 3> {
+                    st,
+                    cost,
+                    second,
+                    point,
+                };
+                self.run(&k, options, control)
+            }
+            _ => {
+                let k = OneSourceKernel::<C, 0> {
+                    st,
+                    cost,
+                    second,
+                    point,
+                };
+                self.run(&k, options, control)
+            }
         }
     }
 
@@ -417,45 +445,46 @@ trait Kernel {
     fn value(&self, j: usize, jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)>;
 }
 
-/// The general update of [`super::update`]: either order, factoring,
-/// several sources; `ONE` when there is one source (labels are then not
-/// read nor written during the march).
-struct General<'a, const ONE: bool, const A: usize> {
+/// The general update of [`super::update`] for several sources: either
+/// order, factoring, labels.
+struct General<'a> {
     st: &'a Stencil,
     cost: &'a IsotropicCost<'a>,
     second: bool,
     factor: Option<&'a Factor>,
-    multi: bool,
 }
 
-impl<const ONE: bool, const A: usize> Kernel for General<'_, ONE, A> {
-    const LABELS: bool = !ONE;
-    const AXES: usize = A;
+impl Kernel for General<'_> {
+    const LABELS: bool = true;
+    const AXES: usize = 0;
 
     #[inline(always)]
     fn frozen(&self, i: usize, idx: [usize; 3]) {
         prefetch_rows(self.st, self.cost, i, idx);
     }
 
-    /// The index `jdx` is recomputed from `j` (two multiplications): this
-    /// function is not inlined (its callers would grow too much, measured
-    /// 7 % slower), and an index passed to it through memory costs a failed
-    /// store-to-load forwarding per call (5 % at 2048² order 2).
+    /// Not inlined: its callers would grow too much (measured 7 % slower
+    /// with one source, when this kernel served it). The index `jdx` is
+    /// recomputed from `j` (two multiplications): an index passed through
+    /// memory costs a failed store-to-load forwarding per call.
     #[inline]
     fn value(&self, j: usize, _jdx: [usize; 3], u: &[f64], labels: &[i32]) -> Option<(f64, i32)> {
         let jdx = self.st.unravel(j);
         let w = self.cost.at(j);
         let known = |x: usize| u[x] < f64::INFINITY;
-        let (second, factor, multi, cost) = (self.second, self.factor, self.multi, self.cost);
-        if ONE {
-            update::<A, _, _>(
-                self.st, j, jdx, w, u, &OneSource, known, second, factor, multi, cost,
-            )
-        } else {
-            update::<A, _, _>(
-                self.st, j, jdx, w, u, labels, known, second, factor, multi, cost,
-            )
-        }
+        update::<0, _, _>(
+            self.st,
+            j,
+            jdx,
+            w,
+            u,
+            labels,
+            known,
+            self.second,
+            self.factor,
+            true,
+            self.cost,
+        )
     }
 }
 
@@ -544,6 +573,32 @@ impl<C: CostAt, const A: usize> Kernel for FirstOrder<'_, C, A> {
         let w = self.cost.at(j);
         let one = |k| self.cost.one_axis(self.st, k, w);
         first_order::<A>(self.st, j, jdx, w, u, one).map(|v| (v, 0))
+    }
+}
+
+/// The update of one source with order 2 or factoring ([`one_source`]).
+struct OneSourceKernel<'a, C, const A: usize> {
+    st: &'a Stencil,
+    cost: C,
+    second: bool,
+    point: Option<FactorPoint>,
+}
+
+impl<C: CostAt, const A: usize> Kernel for OneSourceKernel<'_, C, A> {
+    const LABELS: bool = false;
+    const AXES: usize = A;
+
+    #[inline(always)]
+    fn frozen(&self, i: usize, idx: [usize; 3]) {
+        self.cost.prefetch_rows(self.st, i, idx);
+    }
+
+    #[inline]
+    fn value(&self, j: usize, _jdx: [usize; 3], u: &[f64], _labels: &[i32]) -> Option<(f64, i32)> {
+        let jdx = self.st.unravel(j);
+        let w = self.cost.at(j);
+        let cost = |x| self.cost.at(x);
+        one_source::<A>(self.st, j, jdx, w, u, self.second, self.point, cost).map(|v| (v, 0))
     }
 }
 

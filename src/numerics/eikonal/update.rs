@@ -212,7 +212,7 @@ impl Labels for OneSource {
 
 /// A point source as seen by factoring.
 #[derive(Debug, Clone, Copy)]
-struct FactorPoint {
+pub(super) struct FactorPoint {
     /// Padded index coordinates.
     p: [f64; 3],
     /// `W(p)`.
@@ -272,8 +272,9 @@ impl Factor {
         Some(Self { points })
     }
 
+    /// The point source of `label`, if it is one.
     #[inline]
-    fn point(&self, label: i32) -> Option<FactorPoint> {
+    pub fn point(&self, label: i32) -> Option<FactorPoint> {
         usize::try_from(label)
             .ok()
             .and_then(|l| self.points.get(l).copied().flatten())
@@ -611,6 +612,298 @@ pub(super) fn first_order<const A: usize>(
         .map(|m| b[m] + w * hs[m])
         .min_by(|x, y| x.total_cmp(y))?;
     v.is_finite().then_some(v)
+}
+
+/// [`update`] for one source (labels do not matter) with the second-order
+/// scheme, factoring or both: the same value with the same arithmetic, in
+/// fixed axis slots as [`first_order`] (a missing axis is a slot with
+/// `a_1 = +inf`), so that no loop has a data-dependent length except the
+/// causal one of the quadratic. `point` is the source when factoring is on,
+/// `cost_at` the cost field (for [`cap`]).
+///
+/// A neighbour is known exactly when its value in `u` is finite. Returns the
+/// new value of cell `i`, or `None` if no neighbour is known or the value
+/// would not be finite. Never returns NaN.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn one_source<const A: usize>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: &[f64],
+    second: bool,
+    point: Option<FactorPoint>,
+    cost_at: impl Fn(usize) -> f64,
+) -> Option<f64> {
+    let axes = st.axes_as::<A>();
+    let mut sl = Slots {
+        a1: [f64::INFINITY; 3],
+        j1: [i; 3],
+        sigma: [0.0; 3],
+        a2: [f64::INFINITY; 3],
+        k: [0; 3],
+    };
+    let mut any2 = false;
+    for (slot, &k) in axes.iter().enumerate() {
+        let s = st.strides[k];
+        sl.k[slot] = k;
+        // `<` is false for NaN and +inf: unknown neighbours drop out.
+        if idx[k] > 0 && u[i - s] < f64::INFINITY {
+            sl.a1[slot] = u[i - s];
+            sl.j1[slot] = i - s;
+            sl.sigma[slot] = -1.0;
+        }
+        if idx[k] + 1 < st.shape[k] && u[i + s] < sl.a1[slot] {
+            sl.a1[slot] = u[i + s];
+            sl.j1[slot] = i + s;
+            sl.sigma[slot] = 1.0;
+        }
+        if second && sl.a1[slot] < f64::INFINITY {
+            let j = sl.j1[slot];
+            let j2 = if sl.sigma[slot] < 0.0 {
+                (idx[k] >= 2).then(|| j - s)
+            } else {
+                (idx[k] + 2 < st.shape[k]).then(|| j + s)
+            };
+            if let Some(j2) = j2 {
+                if u[j2] <= sl.a1[slot] {
+                    sl.a2[slot] = u[j2];
+                    any2 = true;
+                }
+            }
+        }
+    }
+    if sl.a1.iter().all(|&a| a == f64::INFINITY) {
+        return None;
+    }
+    let w2 = w * w;
+    let cap = |v: f64| {
+        let mut best = v;
+        for slot in 0..axes.len() {
+            let (a, h) = (sl.a1[slot], st.h[sl.k[slot]]);
+            if a < f64::INFINITY && a + w * h < best {
+                let bound = a + h * w.max(cost_at(sl.j1[slot]));
+                if bound < best {
+                    best = bound;
+                }
+            }
+        }
+        best
+    };
+
+    if let Some(p) = point {
+        if let Some(v) = factored_slots(st, idx, w2, &sl, axes.len(), u, p) {
+            return Some(cap(v));
+        }
+    }
+    let mut b = [f64::INFINITY; 3];
+    let mut c = [0.0f64; 3];
+    if any2 {
+        for slot in 0..3 {
+            let k = sl.k[slot];
+            if sl.a2[slot] < f64::INFINITY {
+                b[slot] = (4.0 * sl.a1[slot] - sl.a2[slot]) / 3.0;
+                c[slot] = st.inv_h2_second[k];
+            } else if sl.a1[slot] < f64::INFINITY {
+                b[slot] = sl.a1[slot];
+                c[slot] = st.inv_h2[k];
+            }
+        }
+        if let Some((v, m, a)) = solve_slots(b, c, sl.a1, w2) {
+            if v.is_finite() && a[..m].iter().all(|&a| v >= a) {
+                return Some(cap(v));
+            }
+        }
+    }
+    for slot in 0..3 {
+        b[slot] = sl.a1[slot];
+        c[slot] = if sl.a1[slot] < f64::INFINITY {
+            st.inv_h2[sl.k[slot]]
+        } else {
+            0.0
+        };
+    }
+    if let Some((v, _, a)) = solve_slots(b, c, sl.a1, w2) {
+        if v.is_finite() && v >= a[0] {
+            return Some(v);
+        }
+    }
+    // Only reached through overflow or rounding: the one-axis update.
+    let v = (0..3)
+        .filter(|&m| sl.a1[m] < f64::INFINITY)
+        .map(|m| sl.a1[m] + w * st.h[sl.k[m]])
+        .min_by(|x, y| x.total_cmp(y))?;
+    v.is_finite().then_some(v)
+}
+
+/// Per-axis upwind data of [`one_source`], in fixed slots.
+struct Slots {
+    /// Smaller known neighbour value (`+inf`: no known neighbour).
+    a1: [f64; 3],
+    /// Its index.
+    j1: [usize; 3],
+    /// `±1.0`: the side of that neighbour.
+    sigma: [f64; 3],
+    /// Second neighbour value (`+inf` when the second-order stencil is missing).
+    a2: [f64; 3],
+    /// The axis of the slot.
+    k: [usize; 3],
+}
+
+/// [`factored`] on fixed slots (`n` of them are axes), for [`one_source`].
+#[inline(always)]
+fn factored_slots(
+    st: &Stencil,
+    idx: [usize; 3],
+    w2: f64,
+    sl: &Slots,
+    n: usize,
+    u: &[f64],
+    fp: FactorPoint,
+) -> Option<f64> {
+    let FactorPoint { p, w: wp } = fp;
+    let mut d = [0.0; 3];
+    let mut r2 = 0.0;
+    for k in 0..3 {
+        d[k] = (idx[k] as f64 - p[k]) * st.h[k];
+        r2 += d[k] * d[k];
+    }
+    if r2 <= 0.0 {
+        return None;
+    }
+    let r = r2.sqrt();
+    let u0 = wp * r;
+    let g = |k: usize| wp * d[k] / r;
+    let mut rhs = w2;
+    for slot in 0..n {
+        let k = sl.k[slot];
+        if sl.a1[slot] == f64::INFINITY && (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
+            let dv = strip_dv(st, idx, sl, n, u, k, d, wp);
+            let gk = g(k);
+            rhs -= (gk + dv) * (gk + dv);
+        }
+    }
+    if rhs.is_nan() || rhs <= 0.0 {
+        return None;
+    }
+    let mut b = [f64::INFINITY; 3];
+    let mut c = [0.0f64; 3];
+    for slot in 0..3 {
+        let a1 = sl.a1[slot];
+        if a1 == f64::INFINITY {
+            continue;
+        }
+        let k = sl.k[slot];
+        let h = st.h[k];
+        let sh = sl.sigma[slot] * h;
+        // U_0 at x + σ e_k and x + 2σ e_k.
+        let v1 = a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
+        if sl.a2[slot] < f64::INFINITY {
+            let v2 = sl.a2[slot] - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
+            b[slot] = (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g(k);
+            c[slot] = st.inv_h2_second[k];
+        } else {
+            b[slot] = v1 + u0 + sh * g(k);
+            c[slot] = st.inv_h2[k];
+        }
+    }
+    let (v, m, a) = solve_slots(b, c, sl.a1, rhs)?;
+    let lowest = a[..m].iter().copied().fold(f64::INFINITY, f64::min);
+    (v.is_finite() && v >= lowest).then_some(v)
+}
+
+/// [`Strip::dv`] for [`one_source`] (rare: only on the grid lines through
+/// the source, so it is kept out of line).
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+#[cold]
+fn strip_dv(
+    st: &Stencil,
+    idx: [usize; 3],
+    sl: &Slots,
+    n: usize,
+    u: &[f64],
+    k: usize,
+    d: [f64; 3],
+    wp: f64,
+) -> f64 {
+    let mut ax = [Axis::default(); 3];
+    let mut m = 0;
+    for slot in 0..n {
+        if sl.a1[slot] < f64::INFINITY {
+            ax[m] = Axis {
+                k: sl.k[slot],
+                a1: sl.a1[slot],
+                j1: sl.j1[slot],
+                sigma: sl.sigma[slot],
+                a2: sl.a2[slot],
+            };
+            m += 1;
+        }
+    }
+    let known = |x: usize| u[x] < f64::INFINITY;
+    let strip = Strip {
+        missing: &[],
+        u,
+        known: &known,
+    };
+    strip.dv(st, idx, &ax[..m], k, d, wp, 0, &OneSource)
+}
+
+/// `solve_terms` on fixed slots (a missing term has `b = +inf`): sorts the
+/// slots by `b` (stably, with `a`, the upwind values) and returns the root,
+/// the number of active terms and the sorted `a`.
+#[inline(always)]
+fn solve_slots(
+    mut b: [f64; 3],
+    mut c: [f64; 3],
+    mut a: [f64; 3],
+    rhs: f64,
+) -> Option<(f64, usize, [f64; 3])> {
+    let mut swap_if_less = |x: usize, y: usize| {
+        if b[y] < b[x] {
+            b.swap(x, y);
+            c.swap(x, y);
+            a.swap(x, y);
+        }
+    };
+    swap_if_less(0, 1);
+    swap_if_less(1, 2);
+    swap_if_less(0, 1);
+    // The sums of `solve_terms`, term by term. The roots with one and two
+    // terms are computed before either is tested (two independent chains
+    // of a square root and a division, instead of one after the other),
+    // then the causal one is kept.
+    let b0 = b[0];
+    let root = |sa: f64, sb: f64, sc: f64| {
+        let disc = sb * sb - sa * (sc - rhs);
+        (!(disc.is_nan() || disc < 0.0)).then(|| (sb + disc.sqrt()) / sa)
+    };
+    let (mut sa, mut sb, mut sc) = (0.0, 0.0, 0.0);
+    let d = b[0] - b0;
+    sa += c[0];
+    sb += c[0] * d;
+    sc += c[0] * d * d;
+    let v0 = root(sa, sb, sc);
+    let d1 = b[1] - b0;
+    sa += c[1];
+    sb += c[1] * d1;
+    sc += c[1] * d1 * d1;
+    let v1 = root(sa, sb, sc);
+    let v = v0?;
+    if v <= d1 {
+        return Some((b0 + v, 1, a));
+    }
+    let v = v1?;
+    let d2 = b[2] - b0;
+    if v <= d2 {
+        return Some((b0 + v, 2, a));
+    }
+    sa += c[2];
+    sb += c[2] * d2;
+    sc += c[2] * d2 * d2;
+    root(sa, sb, sc).map(|v| (b0 + v, 3, a))
 }
 
 /// The first-order root with one axis, `√(c_k² W²) / c_k²` with
@@ -993,6 +1286,86 @@ mod tests {
             };
             proptest::prop_assert_eq!(unrolled.map(f64::to_bits), general);
             let generic = first_order::<0>(&st, i, x, w, &u, one);
+            proptest::prop_assert_eq!(generic.map(f64::to_bits), general);
+        }
+    }
+
+    /// A coordinate of the source for the kernel comparison: on the cell's
+    /// grid line, half a cell off it, or anywhere near it.
+    fn source_coordinate() -> impl proptest::strategy::Strategy<Value = f64> {
+        use proptest::prelude::*;
+        prop_oneof![Just(2.0), Just(1.5), -1.0f64..5.0]
+    }
+
+    proptest::proptest! {
+        /// The one-source kernel of fast marching gives the very bits of
+        /// the general update with one source, whatever the known
+        /// neighbours (second neighbours included), ties, spacing, costs
+        /// around the cell (the cap reads them), order and factoring (the
+        /// source is put near the cell, so that the strip rule of missing
+        /// axes is exercised too), with its axis loop unrolled or not.
+        #[test]
+        fn one_source_kernel_matches_the_general_update(
+            three in proptest::bool::ANY,
+            second in proptest::bool::ANY,
+            factoring in proptest::bool::ANY,
+            vals in proptest::collection::vec(neighbour(), 125),
+            costs in proptest::collection::vec(0.1f64..4.0, 125),
+            h in proptest::collection::vec(0.25f64..2.0, 3),
+            p in proptest::collection::vec(source_coordinate(), 3),
+            wp in 0.1f64..4.0,
+        ) {
+            // A 5^d grid, the cell at its centre: every second neighbour
+            // exists, and so do the diagonal cells the strip rule reads.
+            let (shape, spacing): (Vec<usize>, Vec<f64>) = if three {
+                (vec![5, 5, 5], h.clone())
+            } else {
+                (vec![5, 5], h[..2].to_vec())
+            };
+            let g = Grid::new(&shape, &spacing).unwrap();
+            let st = Stencil::new(&g);
+            let x = [if three { 2 } else { 0 }, 2, 2];
+            let i = g.linear(x);
+            let mut u = vals[..g.len()].to_vec();
+            u[i] = f64::NAN;
+            let cost = costs[..g.len()].to_vec();
+            let w = cost[i];
+            let field = IsotropicCost::new(
+                &g,
+                crate::numerics::metric::CostValues::F64(std::borrow::Cow::Borrowed(&cost)),
+                crate::numerics::metric::Interpretation::Cost,
+                None,
+            )
+            .unwrap();
+            let mut q = [0.0; 3];
+            for (n, &k) in st.axes().iter().enumerate() {
+                q[k] = p[n];
+            }
+            let point = FactorPoint { p: q, w: wp };
+            let factor = Factor { points: vec![Some(point)] };
+            let general = update::<0, _, _>(
+                &st,
+                i,
+                x,
+                w,
+                &u,
+                &OneSource,
+                |j| u[j] < f64::INFINITY,
+                second,
+                factoring.then_some(&factor),
+                false,
+                &field,
+            )
+            .map(|r| r.0.to_bits());
+            let point = factoring.then_some(point);
+            let at = |j| field.at(j);
+            let unrolled = if three {
+                one_source::<3>(&st, i, x, w, &u, second, point, at)
+            } else {
+                one_source::<2>(&st, i, x, w, &u, second, point, at)
+            };
+            proptest::prop_assert_eq!(unrolled.map(f64::to_bits), general);
+            let generic = one_source::<0>(&st, i, x, w, &u, second, point, at);
             proptest::prop_assert_eq!(generic.map(f64::to_bits), general);
         }
     }
