@@ -692,30 +692,43 @@ pub(super) fn one_source<const A: usize>(
         best
     };
 
-    if let Some(p) = point {
-        if let Some(v) = factored_slots(st, idx, w2, &sl, axes.len(), u, p) {
-            return Some(cap(v));
+    // The factored or second-order value, capped (one call site, so that
+    // the cap is inlined); the first-order value returns directly.
+    let v = 'capped: {
+        if let Some(p) = point {
+            if let Some(v) = factored_slots::<A>(st, idx, w2, &sl, axes.len(), u, p) {
+                break 'capped v;
+            }
         }
-    }
+        if any2 {
+            let mut b = [f64::INFINITY; 3];
+            let mut c = [0.0f64; 3];
+            for slot in 0..3 {
+                let k = sl.k[slot];
+                if sl.a2[slot] < f64::INFINITY {
+                    b[slot] = (4.0 * sl.a1[slot] - sl.a2[slot]) / 3.0;
+                    c[slot] = st.inv_h2_second[k];
+                } else if sl.a1[slot] < f64::INFINITY {
+                    b[slot] = sl.a1[slot];
+                    c[slot] = st.inv_h2[k];
+                }
+            }
+            if let Some((v, m, a)) = solve_slots::<A>(b, c, sl.a1, w2) {
+                if v.is_finite() && a[..m].iter().all(|&a| v >= a) {
+                    break 'capped v;
+                }
+            }
+        }
+        return first_order_slots::<A>(st, w, w2, &sl);
+    };
+    Some(cap(v))
+}
+
+/// The first-order end of [`one_source`] (its value needs no cap).
+#[inline(always)]
+fn first_order_slots<const A: usize>(st: &Stencil, w: f64, w2: f64, sl: &Slots) -> Option<f64> {
     let mut b = [f64::INFINITY; 3];
     let mut c = [0.0f64; 3];
-    if any2 {
-        for slot in 0..3 {
-            let k = sl.k[slot];
-            if sl.a2[slot] < f64::INFINITY {
-                b[slot] = (4.0 * sl.a1[slot] - sl.a2[slot]) / 3.0;
-                c[slot] = st.inv_h2_second[k];
-            } else if sl.a1[slot] < f64::INFINITY {
-                b[slot] = sl.a1[slot];
-                c[slot] = st.inv_h2[k];
-            }
-        }
-        if let Some((v, m, a)) = solve_slots(b, c, sl.a1, w2) {
-            if v.is_finite() && a[..m].iter().all(|&a| v >= a) {
-                return Some(cap(v));
-            }
-        }
-    }
     for slot in 0..3 {
         b[slot] = sl.a1[slot];
         c[slot] = if sl.a1[slot] < f64::INFINITY {
@@ -724,7 +737,7 @@ pub(super) fn one_source<const A: usize>(
             0.0
         };
     }
-    if let Some((v, _, a)) = solve_slots(b, c, sl.a1, w2) {
+    if let Some((v, _, a)) = solve_slots::<A>(b, c, sl.a1, w2) {
         if v.is_finite() && v >= a[0] {
             return Some(v);
         }
@@ -753,7 +766,7 @@ struct Slots {
 
 /// [`factored`] on fixed slots (`n` of them are axes), for [`one_source`].
 #[inline(always)]
-fn factored_slots(
+fn factored_slots<const A: usize>(
     st: &Stencil,
     idx: [usize; 3],
     w2: f64,
@@ -808,7 +821,7 @@ fn factored_slots(
             c[slot] = st.inv_h2[k];
         }
     }
-    let (v, m, a) = solve_slots(b, c, sl.a1, rhs)?;
+    let (v, m, a) = solve_slots::<A>(b, c, sl.a1, rhs)?;
     let lowest = a[..m].iter().copied().fold(f64::INFINITY, f64::min);
     (v.is_finite() && v >= lowest).then_some(v)
 }
@@ -853,9 +866,10 @@ fn strip_dv(
 
 /// `solve_terms` on fixed slots (a missing term has `b = +inf`): sorts the
 /// slots by `b` (stably, with `a`, the upwind values) and returns the root,
-/// the number of active terms and the sorted `a`.
+/// the number of active terms and the sorted `a`. With `A = 2` the third
+/// slot is known to be empty and is left out.
 #[inline(always)]
-fn solve_slots(
+fn solve_slots<const A: usize>(
     mut b: [f64; 3],
     mut c: [f64; 3],
     mut a: [f64; 3],
@@ -869,8 +883,10 @@ fn solve_slots(
         }
     };
     swap_if_less(0, 1);
-    swap_if_less(1, 2);
-    swap_if_less(0, 1);
+    if A != 2 {
+        swap_if_less(1, 2);
+        swap_if_less(0, 1);
+    }
     // The sums of `solve_terms`, term by term. The roots with one and two
     // terms are computed before either is tested (two independent chains
     // of a square root and a division, instead of one after the other),
@@ -896,6 +912,9 @@ fn solve_slots(
         return Some((b0 + v, 1, a));
     }
     let v = v1?;
+    if A == 2 {
+        return Some((b0 + v, 2, a));
+    }
     let d2 = b[2] - b0;
     if v <= d2 {
         return Some((b0 + v, 2, a));
