@@ -47,7 +47,10 @@
 //!
 //! [`StopRules`]: super::StopRules
 
-use super::update::{first_order, one_axis_root, one_source, update, Factor, FactorPoint, Stencil};
+use super::update::{
+    first_order, one_axis_root, one_neighbour, one_source, one_source_first, update, Factor,
+    FactorPoint, Stencil,
+};
 use super::{
     finish, target_cells, EikonalError, EikonalOptions, EikonalOutput, EikonalProblem,
     InitialFront, Order, StopReason,
@@ -382,10 +385,10 @@ impl March<'_> {
                     for &k in st.axes() {
                         let s = st.strides[k];
                         if idx[k] > 0 {
-                            self.visit(kernel, i - s, idx, k, idx[k] - 1);
+                            self.visit(kernel, i - s, i, idx, k, idx[k] - 1);
                         }
                         if idx[k] + 1 < st.shape[k] {
-                            self.visit(kernel, i + s, idx, k, idx[k] + 1);
+                            self.visit(kernel, i + s, i, idx, k, idx[k] + 1);
                         }
                     }
                 }
@@ -400,22 +403,51 @@ impl March<'_> {
         let st = self.st;
         let s = st.strides[AX];
         if idx[AX] > 0 {
-            self.visit(kernel, i - s, idx, AX, idx[AX] - 1);
+            self.visit(kernel, i - s, i, idx, AX, idx[AX] - 1);
         }
         if idx[AX] + 1 < st.shape[AX] {
-            self.visit(kernel, i + s, idx, AX, idx[AX] + 1);
+            self.visit(kernel, i + s, i, idx, AX, idx[AX] + 1);
         }
     }
 
-    /// Recomputes cell `j` (index `idx` with `idx[k] = jk`) if it is Far or Trial.
+    /// Recomputes cell `j` (index `idx` with `idx[k] = jk`), the neighbour
+    /// along axis `k` of cell `i` (index `idx`) just frozen, if it is Far or
+    /// Trial.
+    ///
+    /// A Far cell has no frozen neighbour but `i`: every earlier visit of
+    /// it would have made it Trial, unless its value overflowed, and a
+    /// neighbour that far up cannot be used by the update either. Its
+    /// value then comes from `i` alone ([`Kernel::first`]).
     #[inline(always)]
-    fn visit<K: Kernel>(&mut self, kernel: &K, j: usize, idx: [usize; 3], k: usize, jk: usize) {
+    fn visit<K: Kernel>(
+        &mut self,
+        kernel: &K,
+        j: usize,
+        i: usize,
+        idx: [usize; 3],
+        k: usize,
+        jk: usize,
+    ) {
         let state = self.heap.state(j as u32);
         if !open(state) {
             return;
         }
         let mut jdx = idx;
         jdx[k] = jk;
+        if K::FIRST && state == FAR {
+            let st = self.st;
+            let u = &self.heap.positions().0;
+            // The cell beyond `i`, on the side away from `j`.
+            let beyond = if j < i {
+                (idx[k] + 1 < st.shape[k]).then(|| i + (i - j))
+            } else {
+                (idx[k] >= 1).then(|| i - (j - i))
+            };
+            if let Some(v) = kernel.first(j, jdx, i, u[i], k, beyond, u) {
+                self.heap.push(j as u32, v);
+            }
+            return;
+        }
         if let Some((v, l)) = kernel.value(j, jdx, &self.heap.positions().0, &self.labels) {
             if K::LABELS {
                 self.labels[j] = l;
@@ -435,6 +467,28 @@ trait Kernel {
     /// The number of axes when they are the last `AXES` padded axes
     /// ([`Stencil::trailing`]), 0 for any other layout.
     const AXES: usize;
+
+    /// Whether [`Kernel::first`] is implemented.
+    const FIRST: bool = false;
+
+    /// The value of a Far cell `j` (index `jdx`) whose only known neighbour is `i`, of
+    /// value `ui`, along axis `k` (`beyond` is the cell after `i` on that
+    /// axis, if any), or `None`: the same as [`Kernel::value`] would give,
+    /// without reading the other neighbours.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn first(
+        &self,
+        _j: usize,
+        _jdx: [usize; 3],
+        _i: usize,
+        _ui: f64,
+        _k: usize,
+        _beyond: Option<usize>,
+        _u: &[f64],
+    ) -> Option<f64> {
+        None
+    }
 
     /// Called when cell `i` is frozen, before its neighbours are visited.
     #[inline(always)]
@@ -574,6 +628,24 @@ impl<C: CostAt, const A: usize> Kernel for FirstOrder<'_, C, A> {
         let one = |k| self.cost.one_axis(self.st, k, w);
         first_order::<A>(self.st, j, jdx, w, u, one).map(|v| (v, 0))
     }
+
+    const FIRST: bool = true;
+
+    #[inline(always)]
+    fn first(
+        &self,
+        j: usize,
+        _jdx: [usize; 3],
+        _i: usize,
+        ui: f64,
+        k: usize,
+        _beyond: Option<usize>,
+        _u: &[f64],
+    ) -> Option<f64> {
+        let w = self.cost.at(j);
+        let one = self.cost.one_axis(self.st, k, w);
+        one_neighbour(self.st, k, w, ui, f64::INFINITY, false, one, || w)
+    }
 }
 
 /// The update of one source with order 2 or factoring ([`one_source`]).
@@ -599,6 +671,32 @@ impl<C: CostAt, const A: usize> Kernel for OneSourceKernel<'_, C, A> {
         let w = self.cost.at(j);
         let cost = |x| self.cost.at(x);
         one_source::<A>(self.st, j, jdx, w, u, self.second, self.point, cost).map(|v| (v, 0))
+    }
+
+    const FIRST: bool = true;
+
+    #[inline(always)]
+    fn first(
+        &self,
+        j: usize,
+        jdx: [usize; 3],
+        i: usize,
+        ui: f64,
+        k: usize,
+        beyond: Option<usize>,
+        u: &[f64],
+    ) -> Option<f64> {
+        let w = self.cost.at(j);
+        let a2 = beyond.map_or(f64::INFINITY, |b| u[b]);
+        let sigma = if i > j { 1.0 } else { -1.0 };
+        let one = self.cost.one_axis(self.st, k, w);
+        let (st, second, point) = (self.st, self.second, self.point);
+        let cost_i = || self.cost.at(i);
+        match one_source_first::<A>(st, jdx, k, sigma, w, ui, a2, second, point, one, cost_i) {
+            Some(v) => v,
+            // The strip rule reads the other neighbours: the full update.
+            None => self.value(j, jdx, u, &[]).map(|r| r.0),
+        }
     }
 }
 

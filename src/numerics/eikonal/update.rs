@@ -750,6 +750,152 @@ fn first_order_slots<const A: usize>(st: &Stencil, w: f64, w2: f64, sl: &Slots) 
     v.is_finite().then_some(v)
 }
 
+/// [`first_order`] and [`one_source`] without factoring at a cell whose only
+/// known neighbour, of value `a1` along axis `k`, is frozen: the same bits
+/// without reading the other neighbours. `a2` is the value of the cell
+/// after that neighbour (any value: it is used when `second` and
+/// `a2 <= a1`), `one_axis` the first-order root of axis `k`
+/// ([`one_axis_root`]) and `cost_j1` the cost of the neighbour (for
+/// [`cap`]). Fast marching meets such a cell at every first visit.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn one_neighbour(
+    st: &Stencil,
+    k: usize,
+    w: f64,
+    a1: f64,
+    a2: f64,
+    second: bool,
+    one_axis: f64,
+    cost_j1: impl Fn() -> f64,
+) -> Option<f64> {
+    let h = st.h[k];
+    if second && a2 <= a1 {
+        // The one-term quadratic as `solve_slots` computes it:
+        // `disc = 0² − c² (0 − W²) = c² W²`, root `√disc / c²`.
+        let c = st.inv_h2_second[k];
+        let disc = c * (w * w);
+        if !(disc.is_nan() || disc < 0.0) {
+            let mut v = (4.0 * a1 - a2) / 3.0 + disc.sqrt() / c;
+            if v.is_finite() && v >= a1 {
+                if a1 + w * h < v {
+                    let bound = a1 + h * w.max(cost_j1());
+                    if bound < v {
+                        v = bound;
+                    }
+                }
+                return Some(v);
+            }
+        }
+    }
+    let v = a1 + one_axis;
+    if v.is_finite() && v >= a1 {
+        return Some(v);
+    }
+    // Only reached through overflow: the one-axis update.
+    let v = a1 + w * h;
+    v.is_finite().then_some(v)
+}
+
+/// [`one_source`] at a cell `jdx` whose only known neighbour, of value
+/// `a1` along axis `k` on side `sigma` (`±1.0`), is frozen: `a2` is the
+/// value of the cell after it, `one_axis` the first-order root of axis `k`
+/// and `cost_j1` the neighbour's cost (see [`one_neighbour`]). `None` when
+/// another axis of the cell lies within half a cell of the factoring
+/// source, where the strip rule reads the other neighbours: the caller then
+/// runs the full update.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn one_source_first<const A: usize>(
+    st: &Stencil,
+    jdx: [usize; 3],
+    k: usize,
+    sigma: f64,
+    w: f64,
+    a1: f64,
+    a2: f64,
+    second: bool,
+    point: Option<FactorPoint>,
+    one_axis: f64,
+    cost_j1: impl Fn() -> f64,
+) -> Option<Option<f64>> {
+    if let Some(fp) = point {
+        let near = |m: usize| m != k && (jdx[m] as f64 - fp.p[m]).abs() <= 0.5 + 1e-9;
+        if st.axes_as::<A>().iter().any(|&m| near(m)) {
+            return None;
+        }
+        let f = one_neighbour_factored(st, jdx, k, sigma, w, a1, a2, second, fp, &cost_j1);
+        if f.is_some() {
+            return Some(f);
+        }
+    }
+    Some(one_neighbour(st, k, w, a1, a2, second, one_axis, cost_j1))
+}
+
+/// The factored value of [`one_source`] at a cell `jdx` whose only known
+/// neighbour, of value `a1` along axis `k` on side `sigma` (`±1.0`), is
+/// frozen (see [`one_neighbour`]), capped; `None` where `one_source` falls
+/// back to the unfactored update. The caller must have checked that no
+/// other axis of the cell is within half a cell of the source (the strip
+/// rule would read the other neighbours).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn one_neighbour_factored(
+    st: &Stencil,
+    jdx: [usize; 3],
+    k: usize,
+    sigma: f64,
+    w: f64,
+    a1: f64,
+    a2: f64,
+    second: bool,
+    fp: FactorPoint,
+    cost_j1: impl Fn() -> f64,
+) -> Option<f64> {
+    let FactorPoint { p, w: wp } = fp;
+    let mut d = [0.0; 3];
+    let mut r2 = 0.0;
+    for m in 0..3 {
+        d[m] = (jdx[m] as f64 - p[m]) * st.h[m];
+        r2 += d[m] * d[m];
+    }
+    let rhs = w * w;
+    if r2 <= 0.0 || rhs.is_nan() || rhs <= 0.0 {
+        return None;
+    }
+    let r = r2.sqrt();
+    let u0 = wp * r;
+    let gk = wp * d[k] / r;
+    let h = st.h[k];
+    let sh = sigma * h;
+    let v1 = a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
+    let (b, c) = if second && a2 <= a1 {
+        let v2 = a2 - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
+        (
+            (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * gk,
+            st.inv_h2_second[k],
+        )
+    } else {
+        (v1 + u0 + sh * gk, st.inv_h2[k])
+    };
+    // The one-term quadratic as `solve_slots` computes it.
+    let disc = c * rhs;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let mut v = b + disc.sqrt() / c;
+    if !(v.is_finite() && v >= a1) {
+        return None;
+    }
+    if a1 + w * h < v {
+        let bound = a1 + h * w.max(cost_j1());
+        if bound < v {
+            v = bound;
+        }
+    }
+    Some(v)
+}
+
 /// Per-axis upwind data of [`one_source`], in fixed slots.
 struct Slots {
     /// Smaller known neighbour value (`+inf`: no known neighbour).
@@ -1386,6 +1532,74 @@ mod tests {
             proptest::prop_assert_eq!(unrolled.map(f64::to_bits), general);
             let generic = one_source::<0>(&st, i, x, w, &u, second, point, at);
             proptest::prop_assert_eq!(generic.map(f64::to_bits), general);
+        }
+    }
+
+    proptest::proptest! {
+        /// At a first visit (one known neighbour) the shortcut of fast
+        /// marching gives the bits of the one-source kernel, or declines
+        /// (`None`) only where the strip rule needs the other neighbours.
+        #[test]
+        fn first_visit_matches_the_one_source_kernel(
+            three in proptest::bool::ANY,
+            second in proptest::bool::ANY,
+            factoring in proptest::bool::ANY,
+            axis in 0usize..3,
+            up in proptest::bool::ANY,
+            a1 in 0.0f64..3.0,
+            a2 in neighbour(),
+            costs in proptest::collection::vec(0.1f64..4.0, 125),
+            h in proptest::collection::vec(0.25f64..2.0, 3),
+            p in proptest::collection::vec(source_coordinate(), 3),
+            wp in 0.1f64..4.0,
+        ) {
+            let (shape, spacing): (Vec<usize>, Vec<f64>) = if three {
+                (vec![5, 5, 5], h.clone())
+            } else {
+                (vec![5, 5], h[..2].to_vec())
+            };
+            let g = Grid::new(&shape, &spacing).unwrap();
+            let st = Stencil::new(&g);
+            let x = [if three { 2 } else { 0 }, 2, 2];
+            let i = g.linear(x);
+            let k = st.axes()[axis % st.axes().len()];
+            let s = st.strides[k];
+            let (j1, beyond) = if up { (i + s, i + 2 * s) } else { (i - s, i - 2 * s) };
+            let mut u = vec![f64::NAN; g.len()];
+            u[j1] = a1;
+            u[beyond] = a2;
+            let cost = costs[..g.len()].to_vec();
+            let w = cost[i];
+            let field = IsotropicCost::new(
+                &g,
+                crate::numerics::metric::CostValues::F64(std::borrow::Cow::Borrowed(&cost)),
+                crate::numerics::metric::Interpretation::Cost,
+                None,
+            )
+            .unwrap();
+            let mut q = [0.0; 3];
+            for (n, &m) in st.axes().iter().enumerate() {
+                q[m] = p[n];
+            }
+            let point = factoring.then_some(FactorPoint { p: q, w: wp });
+            let at = |j| field.at(j);
+            let sigma = if up { 1.0 } else { -1.0 };
+            let one = one_axis_root(&st, k, w);
+            let full = one_source::<0>(&st, i, x, w, &u, second, point, at).map(f64::to_bits);
+            let first = |v: Option<Option<f64>>| v.map(|v| v.map(f64::to_bits));
+            let generic = one_source_first::<0>(&st, x, k, sigma, w, a1, a2, second, point, one, || cost[j1]);
+            let unrolled = if three {
+                one_source_first::<3>(&st, x, k, sigma, w, a1, a2, second, point, one, || cost[j1])
+            } else {
+                one_source_first::<2>(&st, x, k, sigma, w, a1, a2, second, point, one, || cost[j1])
+            };
+            proptest::prop_assert_eq!(first(generic), first(unrolled));
+            // Declined only with factoring and another axis near the source.
+            let near = st.axes().iter().any(|&m| m != k && (x[m] as f64 - q[m]).abs() <= 0.5 + 1e-9);
+            proptest::prop_assert_eq!(generic.is_none(), factoring && near);
+            if let Some(v) = first(generic) {
+                proptest::prop_assert_eq!(v, full);
+            }
         }
     }
 
