@@ -1455,6 +1455,38 @@ mod tests {
         }
     }
 
+    /// A 5^d grid (3D if `three`, else 2D) of spacing `h`, its stencil, and
+    /// its centre cell (padded index and linear index): every second
+    /// neighbour of the centre exists, and so do the diagonal cells the
+    /// strip rule reads.
+    fn centre_of_five(three: bool, h: &[f64]) -> (Grid, Stencil, [usize; 3], usize) {
+        let g = if three {
+            Grid::new(&[5, 5, 5], h).unwrap()
+        } else {
+            Grid::new(&[5, 5], &h[..2]).unwrap()
+        };
+        let st = Stencil::new(&g);
+        let x = [if three { 2 } else { 0 }, 2, 2];
+        let i = g.linear(x);
+        (g, st, x, i)
+    }
+
+    /// A cost field of double precision values.
+    fn cost_field<'a>(g: &Grid, cost: &'a [f64]) -> IsotropicCost<'a> {
+        use crate::numerics::metric::{CostValues, Interpretation};
+        let values = CostValues::F64(std::borrow::Cow::Borrowed(cost));
+        IsotropicCost::new(g, values, Interpretation::Cost, None).unwrap()
+    }
+
+    /// Padded coordinates from one coordinate per axis of length > 1.
+    fn on_axes(st: &Stencil, p: &[f64]) -> [f64; 3] {
+        let mut q = [0.0; 3];
+        for (n, &k) in st.axes().iter().enumerate() {
+            q[k] = p[n];
+        }
+        q
+    }
+
     /// A coordinate of the source for the kernel comparison: on the cell's
     /// grid line, half a cell off it, or anywhere near it.
     fn source_coordinate() -> impl proptest::strategy::Strategy<Value = f64> {
@@ -1480,33 +1512,13 @@ mod tests {
             p in proptest::collection::vec(source_coordinate(), 3),
             wp in 0.1f64..4.0,
         ) {
-            // A 5^d grid, the cell at its centre: every second neighbour
-            // exists, and so do the diagonal cells the strip rule reads.
-            let (shape, spacing): (Vec<usize>, Vec<f64>) = if three {
-                (vec![5, 5, 5], h.clone())
-            } else {
-                (vec![5, 5], h[..2].to_vec())
-            };
-            let g = Grid::new(&shape, &spacing).unwrap();
-            let st = Stencil::new(&g);
-            let x = [if three { 2 } else { 0 }, 2, 2];
-            let i = g.linear(x);
+            let (g, st, x, i) = centre_of_five(three, &h);
             let mut u = vals[..g.len()].to_vec();
             u[i] = f64::NAN;
-            let cost = costs[..g.len()].to_vec();
+            let cost = &costs[..g.len()];
             let w = cost[i];
-            let field = IsotropicCost::new(
-                &g,
-                crate::numerics::metric::CostValues::F64(std::borrow::Cow::Borrowed(&cost)),
-                crate::numerics::metric::Interpretation::Cost,
-                None,
-            )
-            .unwrap();
-            let mut q = [0.0; 3];
-            for (n, &k) in st.axes().iter().enumerate() {
-                q[k] = p[n];
-            }
-            let point = FactorPoint { p: q, w: wp };
+            let field = cost_field(&g, cost);
+            let point = FactorPoint { p: on_axes(&st, &p), w: wp };
             let factor = Factor { points: vec![Some(point)] };
             let general = update::<0, _, _>(
                 &st,
@@ -1553,34 +1565,17 @@ mod tests {
             p in proptest::collection::vec(source_coordinate(), 3),
             wp in 0.1f64..4.0,
         ) {
-            let (shape, spacing): (Vec<usize>, Vec<f64>) = if three {
-                (vec![5, 5, 5], h.clone())
-            } else {
-                (vec![5, 5], h[..2].to_vec())
-            };
-            let g = Grid::new(&shape, &spacing).unwrap();
-            let st = Stencil::new(&g);
-            let x = [if three { 2 } else { 0 }, 2, 2];
-            let i = g.linear(x);
+            let (g, st, x, i) = centre_of_five(three, &h);
             let k = st.axes()[axis % st.axes().len()];
             let s = st.strides[k];
             let (j1, beyond) = if up { (i + s, i + 2 * s) } else { (i - s, i - 2 * s) };
             let mut u = vec![f64::NAN; g.len()];
             u[j1] = a1;
             u[beyond] = a2;
-            let cost = costs[..g.len()].to_vec();
+            let cost = &costs[..g.len()];
             let w = cost[i];
-            let field = IsotropicCost::new(
-                &g,
-                crate::numerics::metric::CostValues::F64(std::borrow::Cow::Borrowed(&cost)),
-                crate::numerics::metric::Interpretation::Cost,
-                None,
-            )
-            .unwrap();
-            let mut q = [0.0; 3];
-            for (n, &m) in st.axes().iter().enumerate() {
-                q[m] = p[n];
-            }
+            let field = cost_field(&g, cost);
+            let q = on_axes(&st, &p);
             let point = factoring.then_some(FactorPoint { p: q, w: wp });
             let at = |j| field.at(j);
             let sigma = if up { 1.0 } else { -1.0 };
