@@ -852,32 +852,13 @@ fn one_neighbour_factored(
     fp: FactorPoint,
     cost_j1: impl Fn() -> f64,
 ) -> Option<f64> {
-    let FactorPoint { p, w: wp } = fp;
-    let mut d = [0.0; 3];
-    let mut r2 = 0.0;
-    for m in 0..3 {
-        d[m] = (jdx[m] as f64 - p[m]) * st.h[m];
-        r2 += d[m] * d[m];
-    }
     let rhs = w * w;
-    if r2 <= 0.0 || rhs.is_nan() || rhs <= 0.0 {
+    if rhs.is_nan() || rhs <= 0.0 {
         return None;
     }
-    let r = r2.sqrt();
-    let u0 = wp * r;
-    let gk = wp * d[k] / r;
+    let cone = Cone::at(st, jdx, fp)?;
     let h = st.h[k];
-    let sh = sigma * h;
-    let v1 = a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
-    let (b, c) = if second && a2 <= a1 {
-        let v2 = a2 - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
-        (
-            (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * gk,
-            st.inv_h2_second[k],
-        )
-    } else {
-        (v1 + u0 + sh * gk, st.inv_h2[k])
-    };
+    let (b, c) = cone.term(st, k, sigma, a1, (second && a2 <= a1).then_some(a2));
     // The one-term quadratic as `solve_slots` computes it.
     let disc = c * rhs;
     if disc.is_nan() || disc < 0.0 {
@@ -921,25 +902,13 @@ fn factored_slots<const A: usize>(
     u: &[f64],
     fp: FactorPoint,
 ) -> Option<f64> {
-    let FactorPoint { p, w: wp } = fp;
-    let mut d = [0.0; 3];
-    let mut r2 = 0.0;
-    for k in 0..3 {
-        d[k] = (idx[k] as f64 - p[k]) * st.h[k];
-        r2 += d[k] * d[k];
-    }
-    if r2 <= 0.0 {
-        return None;
-    }
-    let r = r2.sqrt();
-    let u0 = wp * r;
-    let g = |k: usize| wp * d[k] / r;
+    let cone = Cone::at(st, idx, fp)?;
     let mut rhs = w2;
     for slot in 0..n {
         let k = sl.k[slot];
-        if sl.a1[slot] == f64::INFINITY && (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
-            let dv = strip_dv(st, idx, sl, n, u, k, d, wp);
-            let gk = g(k);
+        if sl.a1[slot] == f64::INFINITY && (idx[k] as f64 - fp.p[k]).abs() <= 0.5 + 1e-9 {
+            let dv = strip_dv(st, idx, sl, n, u, k, cone.d, fp.w);
+            let gk = cone.grad(k);
             rhs -= (gk + dv) * (gk + dv);
         }
     }
@@ -950,21 +919,11 @@ fn factored_slots<const A: usize>(
     let mut c = [0.0f64; 3];
     for slot in 0..3 {
         let a1 = sl.a1[slot];
-        if a1 == f64::INFINITY {
-            continue;
-        }
-        let k = sl.k[slot];
-        let h = st.h[k];
-        let sh = sl.sigma[slot] * h;
-        // U_0 at x + σ e_k and x + 2σ e_k.
-        let v1 = a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
-        if sl.a2[slot] < f64::INFINITY {
-            let v2 = sl.a2[slot] - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
-            b[slot] = (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g(k);
-            c[slot] = st.inv_h2_second[k];
-        } else {
-            b[slot] = v1 + u0 + sh * g(k);
-            c[slot] = st.inv_h2[k];
+        if a1 < f64::INFINITY {
+            let a2 = sl.a2[slot];
+            let k = sl.k[slot];
+            let sigma = sl.sigma[slot];
+            (b[slot], c[slot]) = cone.term(st, k, sigma, a1, (a2 < f64::INFINITY).then_some(a2));
         }
     }
     let (v, m, a) = solve_slots::<A>(b, c, sl.a1, rhs)?;
@@ -1128,6 +1087,72 @@ fn label_of<L: Labels + ?Sized>(t: &[Term], labels: &L) -> i32 {
     labels.at(best.j1)
 }
 
+/// The cone `U_0 = W_p |x − p|_h` of a factoring source seen from a cell `x`.
+#[derive(Debug, Clone, Copy)]
+struct Cone {
+    /// `x − p` in physical units.
+    d: [f64; 3],
+    /// `|x − p|_h²` and `|x − p|_h`.
+    r2: f64,
+    r: f64,
+    /// `U_0(x)`.
+    u0: f64,
+    /// `W_p`.
+    wp: f64,
+}
+
+impl Cone {
+    /// The cone of `fp` at cell `idx`; `None` at the source itself.
+    #[inline(always)]
+    fn at(st: &Stencil, idx: [usize; 3], fp: FactorPoint) -> Option<Self> {
+        let mut d = [0.0; 3];
+        let mut r2 = 0.0;
+        for k in 0..3 {
+            d[k] = (idx[k] as f64 - fp.p[k]) * st.h[k];
+            r2 += d[k] * d[k];
+        }
+        if r2 <= 0.0 {
+            return None;
+        }
+        let r = r2.sqrt();
+        Some(Self {
+            d,
+            r2,
+            r,
+            u0: fp.w * r,
+            wp: fp.w,
+        })
+    }
+
+    /// `∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h` (physical
+    /// derivative); computed only for the axes that use it (a division each).
+    #[inline(always)]
+    fn grad(&self, k: usize) -> f64 {
+        self.wp * self.d[k] / self.r
+    }
+
+    /// The factored term `(b_k, c_k²)` of axis `k` whose upwind neighbour
+    /// `x + σ e_k` has value `a1`, and `x + 2σ e_k` value `a2` (second
+    /// order when given): the one-sided difference of `V = U − U_0` plus
+    /// `σ ∂_k U_0(x)`.
+    #[inline(always)]
+    fn term(&self, st: &Stencil, k: usize, sigma: f64, a1: f64, a2: Option<f64>) -> (f64, f64) {
+        let h = st.h[k];
+        let sh = sigma * h;
+        let (d, r2, wp) = (self.d[k], self.r2, self.wp);
+        // U_0 at x + σ e_k and x + 2σ e_k.
+        let v1 = a1 - wp * (r2 + 2.0 * sh * d + h * h).sqrt();
+        match a2 {
+            Some(a2) => {
+                let v2 = a2 - wp * (r2 + 4.0 * sh * d + 4.0 * h * h).sqrt();
+                let b = (4.0 * v1 - v2) / 3.0 + self.u0 + (2.0 / 3.0) * sh * self.grad(k);
+                (b, st.inv_h2_second[k])
+            }
+            None => (v1 + self.u0 + sh * self.grad(k), st.inv_h2[k]),
+        }
+    }
+}
+
 /// The factored update (see the module documentation), or `None` to fall back.
 #[inline(always)]
 fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
@@ -1143,26 +1168,13 @@ fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     if ax[1..].iter().any(|a| labels.at(a.j1) != label) {
         return None;
     }
-    let FactorPoint { p, w: wp } = f.point(label)?;
-    let mut d = [0.0; 3];
-    let mut r2 = 0.0;
-    for k in 0..3 {
-        d[k] = (idx[k] as f64 - p[k]) * st.h[k];
-        r2 += d[k] * d[k];
-    }
-    if r2 <= 0.0 {
-        return None;
-    }
-    let r = r2.sqrt();
-    let u0 = wp * r;
-    // ∂_k U_0(x) = W_p (x_k − p_k) h_k / |x − p|_h (physical derivative).
-    // Only for the axes that use it (a division each).
-    let g = |k: usize| wp * d[k] / r;
+    let fp = f.point(label)?;
+    let cone = Cone::at(st, idx, fp)?;
     let mut rhs = w2;
     for &k in strip.missing {
-        if (idx[k] as f64 - p[k]).abs() <= 0.5 + 1e-9 {
-            let dv = strip.dv(st, idx, ax, k, d, wp, label, labels);
-            let gk = g(k);
+        if (idx[k] as f64 - fp.p[k]).abs() <= 0.5 + 1e-9 {
+            let dv = strip.dv(st, idx, ax, k, cone.d, fp.w, label, labels);
+            let gk = cone.grad(k);
             rhs -= (gk + dv) * (gk + dv);
         }
     }
@@ -1171,26 +1183,13 @@ fn factored<K: Fn(usize) -> bool, L: Labels + ?Sized>(
     }
     let mut t = [Term::default(); 3];
     for (t, a) in t.iter_mut().zip(ax) {
-        let k = a.k;
-        let h = st.h[k];
-        let sh = a.sigma * h;
-        // U_0 at x + σ e_k and x + 2σ e_k.
-        let v1 = a.a1 - wp * (r2 + 2.0 * sh * d[k] + h * h).sqrt();
-        *t = if a.a2 < f64::INFINITY {
-            let v2 = a.a2 - wp * (r2 + 4.0 * sh * d[k] + 4.0 * h * h).sqrt();
-            Term {
-                b: (4.0 * v1 - v2) / 3.0 + u0 + (2.0 / 3.0) * sh * g(k),
-                c2: st.inv_h2_second[k],
-                a1: a.a1,
-                j1: a.j1,
-            }
-        } else {
-            Term {
-                b: v1 + u0 + sh * g(k),
-                c2: st.inv_h2[k],
-                a1: a.a1,
-                j1: a.j1,
-            }
+        let a2 = (a.a2 < f64::INFINITY).then_some(a.a2);
+        let (b, c2) = cone.term(st, a.k, a.sigma, a.a1, a2);
+        *t = Term {
+            b,
+            c2,
+            a1: a.a1,
+            j1: a.j1,
         };
     }
     let n = ax.len();
