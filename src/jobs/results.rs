@@ -7,7 +7,9 @@
 //! written, and two attempts of one job never share a key. The job record
 //! references the keys only after every array is written (write, then
 //! publish); objects of attempts that never published are removed when an
-//! attempt succeeds and when the job expires.
+//! attempt succeeds and when the job expires. In a local directory that
+//! includes the temporary files of writes that a killed worker left half
+//! done (not objects, so never listed): the attempt's directory goes whole.
 
 use std::sync::Arc;
 
@@ -31,6 +33,8 @@ pub enum ResultStoreError {
 pub struct ResultStore {
     store: Arc<dyn ObjectStore>,
     description: String,
+    /// The directory of a local store.
+    local_root: Option<std::path::PathBuf>,
 }
 
 impl ResultStore {
@@ -63,6 +67,7 @@ impl ResultStore {
         Ok(Self {
             store: Arc::new(store),
             description: format!("file://{}", dir.display()),
+            local_root: Some(dir.to_path_buf()),
         })
     }
 
@@ -84,6 +89,7 @@ impl ResultStore {
         Ok(Self {
             store,
             description: url.to_string(),
+            local_root: None,
         })
     }
 
@@ -171,6 +177,14 @@ impl ResultStore {
                 Err(e) => return Err(e.into()),
             }
         }
+        if let Some(root) = &self.local_root {
+            let dir = root.join(prefix.as_ref());
+            let keep = keep.map(|k| root.join(k.trim_end_matches('/')));
+            // File system work off the async threads; best effort (see
+            // `remove_stale_dirs`).
+            let _ =
+                tokio::task::spawn_blocking(move || remove_stale_dirs(&dir, keep.as_deref())).await;
+        }
         Ok(doomed.len())
     }
 
@@ -186,6 +200,31 @@ impl ResultStore {
             return false;
         }
         self.store.delete(&key).await.is_ok()
+    }
+}
+
+/// Removes what a local store keeps under `dir` besides `keep` (an attempt
+/// directory): the directories of attempts whose worker was killed in the
+/// middle of a write still hold its temporary file, which is not an object
+/// (the listing skips it), so deleting the objects left them behind. `dir`
+/// is either one attempt's directory (removed whole unless it is `keep`) or
+/// a job's (its attempt directories but `keep` are removed, then `dir`
+/// itself if it is empty). Errors other than "not found" are ignored: the
+/// objects are gone already, and the job's expiry sweeps again.
+fn remove_stale_dirs(dir: &std::path::Path, keep: Option<&std::path::Path>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    if keep.is_some_and(|k| k.parent() == Some(dir)) {
+        for e in entries.flatten() {
+            let path = e.path();
+            if Some(path.as_path()) != keep && path.is_dir() {
+                let _ = std::fs::remove_dir_all(&path);
+            }
+        }
+    } else if keep.is_none() {
+        drop(entries);
+        let _ = std::fs::remove_dir_all(dir);
     }
 }
 
@@ -211,8 +250,33 @@ mod tests {
         assert!(s.get(&k1).await.is_err());
         assert_eq!(&s.get(&k2).await.unwrap()[..], &[4]);
         assert_eq!(s.remove_job("job_a", None).await.unwrap(), 1);
+        assert!(!dir.path().join("results/job_a").exists());
         assert!(ResultStore::open("file://relative").is_err());
         assert!(ResultStore::open("ftp://x").is_err());
         assert!(s.is_usable().await);
+    }
+
+    /// A worker killed in the middle of a write leaves a temporary file in
+    /// its attempt's directory; the attempt that succeeds removes it with
+    /// the directory, and the job's removal removes everything.
+    #[tokio::test]
+    async fn half_written_attempts_of_killed_workers_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = ResultStore::local(dir.path()).unwrap();
+        let job = dir.path().join("results/job_b");
+        std::fs::create_dir_all(job.join("1")).unwrap();
+        std::fs::write(job.join("1/distance.npy#1"), b"half").unwrap();
+        s.put_new(&ResultStore::key("job_b", 2, "distance"), vec![4])
+            .await
+            .unwrap();
+        assert_eq!(s.remove_job("job_b", Some(2)).await.unwrap(), 0);
+        assert!(!job.join("1").exists(), "the killed attempt's directory");
+        assert!(job.join("2/distance.npy").exists(), "the kept attempt");
+        std::fs::create_dir_all(job.join("3")).unwrap();
+        std::fs::write(job.join("3/distance.npy#7"), b"half").unwrap();
+        assert_eq!(s.remove_job_attempt("job_b", 3).await.unwrap(), 0);
+        assert!(!job.join("3").exists());
+        assert_eq!(s.remove_job("job_b", None).await.unwrap(), 1);
+        assert!(!job.exists());
     }
 }
