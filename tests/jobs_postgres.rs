@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 use sqlx::Executor;
 
 /// Grid side of these jobs (smaller than the SQLite test: 40 of them).
-const N: usize = 300;
+const N: usize = 800;
 
 fn postgres_url() -> Option<String> {
     match std::env::var("GEODEX_TEST_POSTGRES_URL") {
@@ -93,7 +93,11 @@ async fn two_processes_share_a_postgres_queue() {
         );
         params.push(p);
     }
-    // Kill A mid-run: once jobs are running and a few are done.
+    // Kill A mid-run: once a few jobs are done and both servers run one
+    // (each has one worker, so two running jobs means A holds one: with
+    // "at least one" the running job could be B's alone, and nothing was
+    // left for B to run again). The jobs are large enough (N) that A is
+    // still inside its job when the kill lands.
     let t = Instant::now();
     loop {
         let done = b.get_json("/v1/jobs?state=succeeded&limit=1000").await["jobs"]
@@ -102,7 +106,7 @@ async fn two_processes_share_a_postgres_queue() {
         let running = b.get_json("/v1/jobs?state=running").await["jobs"]
             .as_array()
             .map_or(0, Vec::len);
-        if done >= 4 && running >= 1 {
+        if done >= 4 && running >= 2 {
             break;
         }
         assert!(t.elapsed() < Duration::from_secs(60), "jobs did not start");
@@ -143,7 +147,7 @@ async fn two_processes_share_a_postgres_queue() {
     let mut api_args = args.to_vec();
     api_args.extend(["--job-workers", "0"]);
     let a2 = Server::start(data.path(), "a2", &api_args).await;
-    let long = json!({"cost": {"constant": 1.0, "shape": [4000, 4000]}, "sources": [{"point": [1.0, 1.0]}], "outputs": {"labels": false}});
+    let long = json!({"cost": {"constant": 1.0, "shape": [6000, 6000]}, "sources": [{"point": [1.0, 1.0]}], "outputs": {"labels": false}});
     let id = a2
         .submit(&json!({"operation": "grid.distance", "params": long}))
         .await;
@@ -159,7 +163,8 @@ async fn two_processes_share_a_postgres_queue() {
     let r = a2
         .post_json(&format!("/v1/jobs/{id}/cancel"), &json!({}), &[])
         .await;
-    assert_eq!(r.status(), 202);
+    let status = r.status();
+    assert_eq!(status, 202, "{}", r.text().await.unwrap_or_default());
     let j: Value = loop {
         let j = a2.job(&id).await;
         if j["state"] == "cancelled" {
