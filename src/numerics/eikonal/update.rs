@@ -682,11 +682,8 @@ pub(super) fn one_source<const A: usize>(
         let mut best = v;
         for slot in 0..axes.len() {
             let (a, h) = (sl.a1[slot], st.h[sl.k[slot]]);
-            if a < f64::INFINITY && a + w * h < best {
-                let bound = a + h * w.max(cost_at(sl.j1[slot]));
-                if bound < best {
-                    best = bound;
-                }
+            if a < f64::INFINITY {
+                best = cap_step(best, a, h, w, || cost_at(sl.j1[slot]));
             }
         }
         best
@@ -776,15 +773,9 @@ pub(super) fn one_neighbour(
         let c = st.inv_h2_second[k];
         let disc = c * (w * w);
         if !(disc.is_nan() || disc < 0.0) {
-            let mut v = (4.0 * a1 - a2) / 3.0 + disc.sqrt() / c;
+            let v = (4.0 * a1 - a2) / 3.0 + disc.sqrt() / c;
             if v.is_finite() && v >= a1 {
-                if a1 + w * h < v {
-                    let bound = a1 + h * w.max(cost_j1());
-                    if bound < v {
-                        v = bound;
-                    }
-                }
-                return Some(v);
+                return Some(cap_step(v, a1, h, w, cost_j1));
             }
         }
     }
@@ -864,17 +855,8 @@ fn one_neighbour_factored(
     if disc.is_nan() || disc < 0.0 {
         return None;
     }
-    let mut v = b + disc.sqrt() / c;
-    if !(v.is_finite() && v >= a1) {
-        return None;
-    }
-    if a1 + w * h < v {
-        let bound = a1 + h * w.max(cost_j1());
-        if bound < v {
-            v = bound;
-        }
-    }
-    Some(v)
+    let v = b + disc.sqrt() / c;
+    (v.is_finite() && v >= a1).then(|| cap_step(v, a1, h, w, cost_j1))
 }
 
 /// Per-axis upwind data of [`one_source`], in fixed slots.
@@ -1054,15 +1036,26 @@ fn cap<L: Labels + ?Sized>(
 ) -> (f64, i32) {
     let mut best = r;
     for a in ax {
-        let h = st.h[a.k];
-        if a.a1 + w * h < best.0 {
-            let bound = a.a1 + h * w.max(cost.at(a.j1));
-            if bound < best.0 {
-                best = (bound, labels.at(a.j1));
-            }
+        let v = cap_step(best.0, a.a1, st.h[a.k], w, || cost.at(a.j1));
+        if v < best.0 {
+            best = (v, labels.at(a.j1));
         }
     }
     best
+}
+
+/// `v` capped by the straight step from one upwind neighbour of value `a1`
+/// along an axis of spacing `h`: `a1 + h max(W(x), W(neighbour))` (see
+/// [`cap`]); the neighbour's cost is read only when the step can bind.
+#[inline(always)]
+fn cap_step(v: f64, a1: f64, h: f64, w: f64, cost_j1: impl FnOnce() -> f64) -> f64 {
+    if a1 + w * h < v {
+        let bound = a1 + h * w.max(cost_j1());
+        if bound < v {
+            return bound;
+        }
+    }
+    v
 }
 
 #[inline(always)]
