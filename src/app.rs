@@ -83,6 +83,7 @@ impl Application {
         .context("opening the job queue")?;
         let state = AppState {
             store,
+            runner: crate::runner::Runner::new(Arc::clone(&pool), op_limits),
             pool,
             op_limits,
             io_limits: io_limits(&settings),

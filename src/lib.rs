@@ -24,4 +24,6 @@ pub mod jobs;
 pub mod numerics;
 pub mod ops;
 pub mod pool;
+pub mod problem;
+pub mod runner;
 pub mod telemetry;

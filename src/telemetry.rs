@@ -33,6 +33,21 @@ pub const IN_FLIGHT: &str = "geodex_pool_in_flight";
 /// Solves refused because the pool was full.
 pub const REJECTED: &str = "geodex_pool_rejected_total";
 
+/// Metric: jobs in each state (gauge, label `state`), from the database.
+pub const JOBS: &str = "geodex_jobs";
+/// Metric: seconds from submission to the start of the first attempt (histogram, label `operation`).
+pub const JOB_QUEUE_WAIT: &str = "geodex_job_queue_wait_seconds";
+/// Metric: seconds an attempt ran (histogram, labels `operation`, `outcome`).
+pub const JOB_RUN: &str = "geodex_job_run_seconds";
+/// Metric: jobs that ended `failed` (counter, labels `operation`, `reason`).
+pub const JOB_FAILURES: &str = "geodex_job_failures_total";
+/// Metric: jobs queued again after their worker's lease ran out (counter, label `operation`).
+pub const JOB_RETRIES: &str = "geodex_job_retries_total";
+/// Histogram buckets of the job metrics (seconds).
+const JOB_BUCKETS: &[f64] = &[
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 900.0, 3600.0,
+];
+
 const HTTP_BUCKETS: &[f64] = &[
     0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0,
 ];
@@ -70,10 +85,7 @@ pub fn metrics_handle() -> PrometheusHandle {
                     b.set_buckets_for_metric(Matcher::Full(SOLVE_SECONDS.into()), SOLVE_BUCKETS)
                 })
                 .and_then(|b| {
-                    b.set_buckets_for_metric(
-                        Matcher::Prefix("geodex_job_".into()),
-                        crate::jobs::METRIC_BUCKETS,
-                    )
+                    b.set_buckets_for_metric(Matcher::Prefix("geodex_job_".into()), JOB_BUCKETS)
                 });
             let builder = match builder {
                 Ok(b) => b,

@@ -22,21 +22,20 @@
 //! `geodex: --source 2: point [300.0, 4.0] is outside the grid of shape [256, 256] ...`,
 //! and a non-zero exit status.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
+use super::run::{run_operation, CliInputs, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
-use crate::numerics::Control;
 use crate::ops::grid_distance::{
-    self, ConnectivitySpec, CostSpec, GridDistanceRequest, InterpretationSpec, MethodSpec,
-    OutputSpec, SourceSpec, StopSpec,
+    ConnectivitySpec, CostSpec, GridDistanceRequest, InterpretationSpec, MethodSpec, OutputSpec,
+    SourceSpec, StopSpec,
 };
 use crate::ops::tensor_spec::{ComponentsTensor, TensorSpec};
-use crate::ops::{InputArray, OpError, OpLimits};
+use crate::ops::{InputArray, OpError};
 
 /// Flags of `geodex distance`.
 #[derive(Debug, Clone, Args)]
@@ -244,25 +243,23 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
             frozen_order: false,
         },
     };
-    let limits = OpLimits {
-        max_cells: MAX_CELLS,
-        max_sources: usize::MAX,
-    };
-    let result = grid_distance::execute(&request, &inputs, &limits, &Control::new())
-        .map_err(|e| op_error(e, cost_flag))?;
-
-    write_array("--out", &args.out, ArrayData::F64(result.distance))?;
-    if let (Some(path), Some(labels)) = (&args.labels, result.labels) {
-        write_array("--labels", path, ArrayData::I32(labels))?;
+    let mut output =
+        run_operation(Box::new(request), inputs).map_err(|e| run_error(e, cost_flag))?;
+    let stats = std::mem::take(&mut output.document["stats"]);
+    for out in output.arrays {
+        match (out.name.as_str(), &args.labels) {
+            ("distance", _) => write_array("--out", &args.out, out.array)?,
+            ("labels", Some(path)) => write_array("--labels", path, out.array)?,
+            _ => {}
+        }
     }
-    let s = &result.stats;
     println!(
         "geodex: wrote {} ({} of {} cells reached, stop: {}, solve {:.3} s)",
         args.out.display(),
-        s.frozen,
-        s.cells,
-        s.stop,
-        s.solve_seconds
+        stats["frozen"],
+        stats["cells"],
+        stats["stop"].as_str().unwrap_or_default(),
+        stats["solve_seconds"].as_f64().unwrap_or_default()
     );
     Ok(())
 }
@@ -277,9 +274,6 @@ pub(crate) struct MetricFlags<'a> {
     pub obstacles: Option<&'a Path>,
     pub speed: bool,
 }
-
-/// The input arrays of a grid command, keyed by the dataset ids its request names.
-pub(crate) type CliInputs = HashMap<String, InputArray>;
 
 impl MetricFlags<'_> {
     /// The flag that gives the metric (errors on `cost.*` / `metric.*` name it).
@@ -384,6 +378,14 @@ fn write_array(name: &str, path: &Path, array: ArrayData) -> Result<(), Distance
     let bytes = io::encode_npy(&array).map_err(|e| flag(name, e.to_string()))?;
     std::fs::write(path, bytes)
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
+}
+
+/// Maps a failed run to the flag at fault ([`op_error`]).
+pub(crate) fn run_error(e: CliRunError, cost_flag: &str) -> DistanceError {
+    match e {
+        CliRunError::Op(e) => op_error(e, cost_flag),
+        CliRunError::Other(reason) => flag("geodex", reason),
+    }
 }
 
 /// Maps an [`OpError`] of the request back to the flag that produced the field.

@@ -17,12 +17,14 @@ use std::sync::Arc;
 
 use clap::{Args, ValueEnum};
 
+use super::run::{run_operation, CliRunError};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData};
-use crate::numerics::Control;
 use crate::ops::mesh_common::{HeatSpec, MeshInput, MeshMethodSpec, MeshPointSpec};
 use crate::ops::mesh_distance::MeshDistanceRequest;
-use crate::ops::{InputArray, Inputs, OpLimits, Operation};
+use crate::ops::{InputArray, Inputs};
+use crate::problem::ApiError;
+use crate::runner::LoadInputs;
 
 /// Flags of `geodex mesh-distance`.
 #[derive(Debug, Clone, Args)]
@@ -68,6 +70,12 @@ pub enum MeshMethodArg {
 }
 
 struct One(Arc<MeshInput>);
+
+impl LoadInputs for One {
+    async fn load(&mut self, _ids: Vec<(String, String)>) -> Result<(), ApiError> {
+        Ok(())
+    }
+}
 
 impl Inputs for One {
     fn get(&self, _id: &str) -> Option<InputArray> {
@@ -158,10 +166,10 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         topology: loaded.topology,
         report: loaded.report,
     }));
-    let limits = OpLimits::default();
-    let output = request
-        .run(&inputs, &limits, &Control::new())
-        .map_err(|e| e.to_string())?;
+    let output = run_operation(Box::new(request), inputs).map_err(|e| match e {
+        CliRunError::Op(e) => e.to_string(),
+        CliRunError::Other(reason) => reason,
+    })?;
     for a in &output.arrays {
         match a.name.as_str() {
             "distance" => write_npy(&args.out, &a.array, "--out")?,

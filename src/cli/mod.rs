@@ -12,6 +12,7 @@ pub mod bench;
 mod bench_tensor;
 pub mod distance;
 pub mod path;
+mod run;
 pub mod segment;
 
 pub mod mesh_distance;

@@ -23,12 +23,12 @@ use std::path::PathBuf;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
-use super::distance::{flag, op_error, parse_points, point_sources, DistanceError, SchemeFlags};
-use crate::numerics::grid::MAX_CELLS;
-use crate::numerics::Control;
+use super::distance::{
+    flag, op_error, parse_points, point_sources, run_error, DistanceError, SchemeFlags,
+};
+use super::run::{run_operation, CliRunError};
 use crate::ops::grid_metric::DesignSpec;
-use crate::ops::grid_paths::{self, GridPathsRequest, PathFormat};
-use crate::ops::OpLimits;
+use crate::ops::grid_paths::{GridPathsRequest, PathFormat, PathOut};
 
 /// Flags of `geodex path`.
 #[derive(Debug, Clone, Args)]
@@ -156,24 +156,29 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
             FormatArg::Geojson => PathFormat::Geojson,
             FormatArg::Svg => PathFormat::Svg,
         },
+        pinned: Default::default(),
     };
-    let limits = OpLimits {
-        max_cells: MAX_CELLS,
-        max_sources: usize::MAX,
-    };
-    let result = grid_paths::execute(&request, &inputs, &limits, &Control::new(), None, None)
-        .map_err(|e| {
+    let output = run_operation(Box::new(request), inputs).map_err(|e| match e {
+        CliRunError::Op(e) => {
             let mapped = e.field().and_then(|f| path_flag(f, cost_flag));
             match (mapped, op_error(e, cost_flag)) {
                 (Some(f), DistanceError::Flag { reason, .. }) => flag(f, reason),
                 (_, other) => other,
             }
-        })?;
+        }
+        other => run_error(other, cost_flag),
+    })?;
+    let doc = output.document;
     let body = match args.format {
-        FormatArg::Json => serde_json::to_string_pretty(&result.document())
-            .map_err(|e| flag("--out", e.to_string()))?,
-        FormatArg::Geojson => result.geojson.clone().unwrap_or_default().to_string(),
-        FormatArg::Svg => result.svg.clone().unwrap_or_default(),
+        FormatArg::Json => {
+            serde_json::to_string_pretty(&doc).map_err(|e| flag("--out", e.to_string()))?
+        }
+        FormatArg::Geojson => doc.get("geojson").cloned().unwrap_or_default().to_string(),
+        FormatArg::Svg => doc
+            .get("svg")
+            .and_then(|s| s.as_str())
+            .unwrap_or_default()
+            .to_string(),
     };
     std::fs::write(&args.out, body).map_err(|e| {
         flag(
@@ -181,7 +186,9 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
             format!("cannot write '{}': {e}", args.out.display()),
         )
     })?;
-    for p in &result.paths {
+    let paths: Vec<PathOut> =
+        serde_json::from_value(doc["paths"].clone()).map_err(|e| flag("--out", e.to_string()))?;
+    for p in &paths {
         println!(
             "geodex: path {} to source {}: {} vertices, geodesic length {:.6}, euclidean length {:.6}",
             p.index,

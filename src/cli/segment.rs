@@ -16,20 +16,19 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Instant;
 
 use clap::Args;
 
+use super::run::{run_on, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
-use crate::numerics::Control;
 use crate::ops::grid_distance::{CostSpec, InterpretationSpec};
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
-use crate::ops::{InputArray, OpError, OpLimits, OpOutput, Operation};
+use crate::ops::{InputArray, OpError, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.
 #[derive(Debug, thiserror::Error)]
@@ -289,31 +288,19 @@ fn flag_of(field: &str) -> String {
     }
 }
 
-fn execute<O: Operation>(
+fn execute<O: Operation + Clone + std::fmt::Debug>(
     request: &O,
     inputs: &HashMap<String, InputArray>,
     threads: Option<usize>,
 ) -> Result<(OpOutput, f64), SegmentCliError> {
-    let limits = OpLimits {
-        max_cells: MAX_CELLS,
-        max_sources: usize::MAX,
-    };
-    let go = || {
-        let started = Instant::now();
-        let out = request.run(inputs, &limits, &Control::new());
-        (out, started.elapsed().as_secs_f64())
-    };
-    let (out, secs) = match threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
-            .build()
-            .map_err(|e| flag("--threads", e.to_string()))?
-            .install(go),
-        None => go(),
-    };
-    let out = out.map_err(|e| match e {
-        OpError::Cancelled => flag("geodex", "cancelled"),
-        e => {
+    let ran = run_on(
+        Box::new(request.clone()),
+        inputs.clone(),
+        threads.map(|n| n.max(1)),
+    )
+    .map_err(|e| match e {
+        CliRunError::Op(OpError::Cancelled) => flag("geodex", "cancelled"),
+        CliRunError::Op(e) => {
             let reason = match &e {
                 OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => {
                     reason.clone()
@@ -323,8 +310,9 @@ fn execute<O: Operation>(
             };
             flag(flag_of(e.field().unwrap_or_default()), reason)
         }
+        CliRunError::Other(reason) => flag("geodex", reason),
     })?;
-    Ok((out, secs))
+    Ok((ran.output, ran.timing.run_seconds))
 }
 
 fn array<'a>(out: &'a OpOutput, name: &str) -> Option<&'a ArrayData> {

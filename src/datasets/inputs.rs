@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use super::{DatasetStore, StoreError};
 use crate::numerics::mesh::{HeatSolver, MeshSolveError};
+use crate::ops::grid_paths::DistanceCache;
 use crate::ops::mesh_common::MeshInput;
 use crate::ops::{InputArray, Inputs};
 
@@ -45,6 +46,7 @@ pub struct StoreInputs {
     /// Meshes by dataset id.
     pub meshes: HashMap<String, Arc<MeshInput>>,
     store: Arc<DatasetStore>,
+    distance_cache: Option<Arc<DistanceCache>>,
 }
 
 impl StoreInputs {
@@ -54,7 +56,15 @@ impl StoreInputs {
             arrays: HashMap::new(),
             meshes: HashMap::new(),
             store,
+            distance_cache: None,
         }
+    }
+
+    /// The same inputs offering `cache` to operations that keep designed
+    /// costs and distance maps between requests (`grid.paths`).
+    pub fn with_distance_cache(mut self, cache: Arc<DistanceCache>) -> Self {
+        self.distance_cache = Some(cache);
+        self
     }
 
     /// Loads every `(field, id)` not already present: a field named `mesh`
@@ -109,5 +119,9 @@ impl Inputs for StoreInputs {
         build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
     ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
         self.store.heat_solver(id, m, build)
+    }
+
+    fn distance_cache(&self) -> Option<&DistanceCache> {
+        self.distance_cache.as_deref()
     }
 }

@@ -52,6 +52,9 @@ pub struct AppState {
     /// Designed costs and distance maps kept for later minimal-path requests.
     pub path_cache: Arc<crate::ops::grid_paths::DistanceCache>,
 
+    /// Runs every operation (on `pool`, against `op_limits`).
+    pub runner: crate::runner::Runner,
+
     /// The durable job queue.
     pub jobs: Arc<crate::jobs::Jobs>,
 }

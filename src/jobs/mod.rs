@@ -4,7 +4,7 @@
 //! * [`db`]: the `geodex_jobs` table (queue and public resource at once) on
 //!   SQLite (default, `<data_dir>/jobs.sqlite`, WAL) or PostgreSQL
 //!   (`--queue postgres://…`, claims with `FOR UPDATE SKIP LOCKED`).
-//! * [`registry`]: operation name → request type (parse, validate, run).
+//! * [`crate::ops::registry`]: operation name → request type.
 //! * [`results`]: result arrays in an object store (`--store file:///dir`, or
 //!   `s3://…` with the `s3` feature), written with put-if-absent.
 //! * [`worker`]: the workers (claim, run on the solver pool, heartbeat that
@@ -20,7 +20,6 @@
 //! the lease publishes (see [`db`] on fencing).
 
 pub mod db;
-pub mod registry;
 pub mod results;
 pub mod worker;
 
@@ -30,7 +29,6 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use axum::http::StatusCode;
 use chrono::{DateTime, TimeZone, Utc};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -38,28 +36,14 @@ use tokio::sync::Notify;
 use utoipa::ToSchema;
 
 use crate::datasets::{DatasetStore, StoreError};
-use crate::http::error::{ApiError, Problem};
 use crate::io::{DType, Limits};
+use crate::ops::registry;
 use crate::ops::OpLimits;
 use crate::pool::SolverPool;
+use crate::problem::{ApiError, Kind, Problem};
 
 pub use db::{DbError, JobDb, JobRow};
 pub use results::{ResultStore, ResultStoreError};
-
-/// Metric: jobs in each state (gauge, label `state`), from the database.
-pub const METRIC_JOBS: &str = "geodex_jobs";
-/// Metric: seconds from submission to the start of the first attempt (histogram, label `operation`).
-pub const METRIC_QUEUE_WAIT: &str = "geodex_job_queue_wait_seconds";
-/// Metric: seconds an attempt ran (histogram, labels `operation`, `outcome`).
-pub const METRIC_RUN: &str = "geodex_job_run_seconds";
-/// Metric: jobs that ended `failed` (counter, labels `operation`, `reason`).
-pub const METRIC_FAILURES: &str = "geodex_job_failures_total";
-/// Metric: jobs queued again after their worker's lease ran out (counter, label `operation`).
-pub const METRIC_RETRIES: &str = "geodex_job_retries_total";
-/// Histogram buckets of the job metrics (seconds).
-pub const METRIC_BUCKETS: &[f64] = &[
-    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 900.0, 3600.0,
-];
 
 /// An error of the job system outside a request.
 #[derive(Debug, thiserror::Error)]
@@ -374,10 +358,8 @@ pub fn problem_json(e: &ApiError, job: &str) -> String {
 
 /// The problem of a cancelled job.
 pub fn cancelled_problem() -> ApiError {
-    ApiError::new(
-        StatusCode::CONFLICT,
-        "cancelled",
-        "The job was cancelled",
+    ApiError::of(
+        Kind::Cancelled,
         "the job was cancelled on request before it finished",
     )
 }
@@ -402,6 +384,16 @@ pub(crate) struct RunFlags {
     pub flag: AtomicBool,
     pub reason: AtomicU8,
     pub progress: AtomicU64,
+}
+
+impl crate::runner::Watch for RunFlags {
+    fn cancel_flag(&self) -> &AtomicBool {
+        &self.flag
+    }
+
+    fn report(&self, fraction: f64) {
+        self.progress.store(fraction.to_bits(), Ordering::Relaxed);
+    }
 }
 
 impl RunFlags {
@@ -431,6 +423,7 @@ pub struct Jobs {
     pub(crate) worker_id: String,
     pub(crate) datasets: Arc<DatasetStore>,
     pub(crate) pool: Arc<SolverPool>,
+    pub(crate) runner: crate::runner::Runner,
     pub(crate) limits: OpLimits,
     pub(crate) io_limits: Limits,
     pub(crate) wake: Notify,
@@ -482,6 +475,7 @@ impl Jobs {
             config,
             worker_id,
             datasets,
+            runner: crate::runner::Runner::new(Arc::clone(&pool), limits),
             pool,
             limits,
             io_limits,
@@ -562,7 +556,7 @@ impl Jobs {
                 ));
             }
         }
-        let prepared = (entry.prepare)(&req.params, &self.limits)?;
+        let prepared = entry.prepare(&req.params, &self.limits)?;
         for (field, id) in &prepared.datasets {
             match self.datasets.meta(id) {
                 Ok(_) => {}

@@ -20,21 +20,22 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use serde_json::{Map, Value};
+use serde_json::Value;
 use tokio::task::JoinHandle;
 
 use super::db::{Finish, JobRow, Lease};
 use super::{
-    cancelled_problem, ms, now_ms, problem_json, registry, stop, JobDb, Jobs, ResultStore,
-    RunFlags, StoredOutput, METRIC_FAILURES, METRIC_JOBS, METRIC_QUEUE_WAIT, METRIC_RETRIES,
-    METRIC_RUN,
+    cancelled_problem, ms, now_ms, problem_json, stop, JobDb, Jobs, ResultStore, RunFlags,
+    StoredOutput,
 };
-use crate::datasets::inputs::{InputError, StoreInputs};
-use crate::http::error::ApiError;
+use crate::datasets::inputs::StoreInputs;
 use crate::io;
-use crate::numerics::Control;
+use crate::ops::registry;
 use crate::ops::{OpError, OpOutput};
 use crate::pool::PoolError;
+use crate::problem::{ApiError, Kind};
+use crate::runner::{Ran, RunError, RunOptions, Watch};
+use crate::telemetry::{JOBS, JOB_FAILURES, JOB_QUEUE_WAIT, JOB_RETRIES, JOB_RUN};
 
 /// Handles of the background tasks of [`Jobs::start`].
 #[derive(Debug, Default)]
@@ -180,10 +181,8 @@ impl Jobs {
 
     async fn reap_once(&self) {
         let now = now_ms();
-        let failed = ApiError::new(
-            axum::http::StatusCode::INTERNAL_SERVER_ERROR,
-            "attempts-exhausted",
-            "The job's worker stopped too many times",
+        let failed = ApiError::of(
+            Kind::AttemptsExhausted,
             "every attempt of this job ended with its worker gone (process killed or lost); \
              it was not retried further",
         );
@@ -200,11 +199,11 @@ impl Jobs {
             Ok(r) => {
                 for (id, op) in &r.requeued {
                     tracing::info!(job = %id, "lease expired; job queued again");
-                    metrics::counter!(METRIC_RETRIES, "operation" => op.clone()).increment(1);
+                    metrics::counter!(JOB_RETRIES, "operation" => op.clone()).increment(1);
                 }
                 for (id, op) in &r.failed {
                     tracing::warn!(job = %id, "lease expired after the last attempt; job failed");
-                    metrics::counter!(METRIC_FAILURES, "operation" => op.clone(), "reason" => "attempts")
+                    metrics::counter!(JOB_FAILURES, "operation" => op.clone(), "reason" => "attempts")
                         .increment(1);
                 }
                 if !r.requeued.is_empty() {
@@ -222,7 +221,7 @@ impl Jobs {
                     .iter()
                     .find(|(s, _)| s == state)
                     .map_or(0, |(_, n)| *n);
-                metrics::gauge!(METRIC_JOBS, "state" => state).set(n as f64);
+                metrics::gauge!(JOBS, "state" => state).set(n as f64);
             }
         }
     }
@@ -251,7 +250,7 @@ impl Jobs {
         };
         if row.attempts == 1 {
             if let Some(started) = row.started_at {
-                metrics::histogram!(METRIC_QUEUE_WAIT, "operation" => row.operation.clone())
+                metrics::histogram!(JOB_QUEUE_WAIT, "operation" => row.operation.clone())
                     .record((started - row.created_at).max(0) as f64 / 1000.0);
             }
         }
@@ -277,7 +276,7 @@ impl Jobs {
             () = &mut heartbeat => work.await,
         };
         let outcome_name = self.conclude(&row, &lease, &flags, outcome).await;
-        metrics::histogram!(METRIC_RUN, "operation" => row.operation.clone(), "outcome" => outcome_name)
+        metrics::histogram!(JOB_RUN, "operation" => row.operation.clone(), "outcome" => outcome_name)
             .record(started.elapsed().as_secs_f64());
         let mut running = self.running.lock().unwrap_or_else(|p| p.into_inner());
         running.remove(&row.id);
@@ -328,24 +327,6 @@ impl Jobs {
         }
     }
 
-    async fn load_inputs(
-        &self,
-        row: &JobRow,
-        entry: &registry::Entry,
-    ) -> Result<StoreInputs, ApiError> {
-        let value: Value = serde_json::from_str(&row.params).map_err(ApiError::internal)?;
-        let prepared = (entry.prepare)(&value, &self.limits)?;
-        let mut inputs = StoreInputs::new(Arc::clone(&self.datasets));
-        inputs.load(prepared.datasets).await.map_err(|e| match e {
-            InputError::NotFound { field, id } => ApiError::not_found(
-                Some(&field),
-                format!("{field}: dataset '{id}' does not exist (or has expired)"),
-            ),
-            other => other.into(),
-        })?;
-        Ok(inputs)
-    }
-
     async fn execute(&self, row: &JobRow, lease: &Lease, flags: &Arc<RunFlags>) -> Outcome {
         let Some(entry) = registry::find(&row.operation) else {
             return Outcome::Failed(
@@ -356,40 +337,38 @@ impl Jobs {
                 "invalid",
             );
         };
-        let inputs = match self.load_inputs(row, entry).await {
-            Ok(i) => i,
-            Err(e) if e.status().is_server_error() => return Outcome::Retry(e),
-            Err(e) => return Outcome::Failed(e, "invalid"),
+        let op = match (entry.parse)(row.params.as_bytes()) {
+            Ok(op) => op,
+            Err(e) => return Outcome::Failed(ApiError::from(e).nested_in("params"), "invalid"),
         };
-        let params = row.params.clone();
-        let limits = self.limits;
-        let run = entry.run;
-        let f = Arc::clone(flags);
+        let inputs = StoreInputs::new(Arc::clone(&self.datasets));
         // Backstop only: the heartbeat enforces the time limit through the flag.
         let backstop = Duration::from_millis(u64::try_from(row.time_limit_ms).unwrap_or(0))
             + self.config.lease
             + Duration::from_secs(30);
-        let pooled = self
-            .pool
-            .run(entry.name, backstop, move |_pool_control: &Control<'_>| {
-                let sink = |p: f64| f.progress.store(p.to_bits(), Ordering::Relaxed);
-                let control = Control::new().with_cancel(&f.flag).with_progress(&sink);
-                run(&params, &inputs, &limits, &control)
-            })
-            .await;
-        match pooled {
-            Ok((Ok(output), _)) => match self.store_output(row, lease, output).await {
+        let watch: Arc<dyn Watch> = Arc::clone(flags) as Arc<dyn Watch>;
+        let options = RunOptions {
+            deadline: backstop,
+            watch: Some(watch),
+        };
+        match self.runner.run(op, inputs, options).await {
+            Ok(Ran { output, .. }) => match self.store_output(row, lease, output).await {
                 Ok((doc, outputs)) => Outcome::Succeeded(doc, outputs),
                 Err(e) => Outcome::Retry(e),
             },
-            Ok((Err(OpError::Cancelled), _)) => Outcome::Stopped,
-            Err(PoolError::Deadline(_)) => {
+            Err(RunError::Invalid(e)) => {
+                Outcome::Failed(ApiError::from(e).nested_in("params"), "invalid")
+            }
+            Err(RunError::Inputs(e)) if e.is_server_error() => Outcome::Retry(e),
+            Err(RunError::Inputs(e)) => Outcome::Failed(e.nested_in("params"), "invalid"),
+            Err(RunError::Op(OpError::Cancelled)) => Outcome::Stopped,
+            Err(RunError::Op(e)) => Outcome::Failed(ApiError::from(e), "invalid"),
+            Err(RunError::Pool(PoolError::Deadline(_))) => {
                 flags.stop(stop::TIME_LIMIT);
                 Outcome::Stopped
             }
-            Ok((Err(e), _)) => Outcome::Failed(ApiError::from(e), "invalid"),
-            Err(PoolError::Busy { .. }) => Outcome::Release,
-            Err(PoolError::Lost) => Outcome::Failed(
+            Err(RunError::Pool(PoolError::Busy { .. })) => Outcome::Release,
+            Err(RunError::Pool(PoolError::Lost)) => Outcome::Failed(
                 ApiError::internal(format!("the solve of job {} panicked", row.id)),
                 "panic",
             ),
@@ -402,17 +381,9 @@ impl Jobs {
         &self,
         row: &JobRow,
         lease: &Lease,
-        output: OpOutput,
+        mut output: OpOutput,
     ) -> Result<(Value, BTreeMap<String, StoredOutput>), ApiError> {
-        let mut doc = match output.document {
-            Value::Object(m) => m,
-            Value::Null => Map::new(),
-            other => {
-                let mut m = Map::new();
-                m.insert("result".into(), other);
-                m
-            }
-        };
+        let mut doc = output.document_map();
         let mut stored = BTreeMap::new();
         for out in output.arrays {
             let shape = out.array.shape().to_vec();
@@ -488,7 +459,7 @@ impl Jobs {
                 }
             }
             Outcome::Failed(e, why) => {
-                metrics::counter!(METRIC_FAILURES, "operation" => row.operation.clone(), "reason" => why)
+                metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => why)
                     .increment(1);
                 let f = finish(
                     "failed",
@@ -511,7 +482,7 @@ impl Jobs {
                     "cancelled",
                 ),
                 stop::TIME_LIMIT => {
-                    metrics::counter!(METRIC_FAILURES, "operation" => row.operation.clone(), "reason" => "time_limit")
+                    metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => "time_limit")
                         .increment(1);
                     let e = time_limit_problem(row.time_limit_ms);
                     (
@@ -539,7 +510,7 @@ impl Jobs {
             Outcome::Retry(e) => {
                 tracing::warn!(job = %row.id, problem = %e.problem.detail, "attempt failed; job queued again");
                 if row.attempts >= row.max_attempts {
-                    metrics::counter!(METRIC_FAILURES, "operation" => row.operation.clone(), "reason" => "error")
+                    metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => "error")
                         .increment(1);
                     (
                         Some(finish(
@@ -552,7 +523,7 @@ impl Jobs {
                         "failed",
                     )
                 } else {
-                    metrics::counter!(METRIC_RETRIES, "operation" => row.operation.clone())
+                    metrics::counter!(JOB_RETRIES, "operation" => row.operation.clone())
                         .increment(1);
                     self.release(lease, false).await;
                     return "retried";
@@ -604,10 +575,8 @@ impl Jobs {
 
 /// The problem of a job stopped at its time limit.
 pub fn time_limit_problem(limit_ms: i64) -> ApiError {
-    ApiError::new(
-        axum::http::StatusCode::GATEWAY_TIMEOUT,
-        "time-limit",
-        "The job ran past its time limit",
+    ApiError::of(
+        Kind::TimeLimit,
         format!(
             "the job ran past its time limit of {} s and was stopped; submit it again with a larger \
              time_limit_secs or a smaller problem",

@@ -15,10 +15,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// let flag = AtomicBool::new(false);
 /// let control = Control::new().with_cancel(&flag);
 /// assert!(!control.is_cancelled());
+/// let job = AtomicBool::new(true);
+/// assert!(control.with_cancel(&job).is_cancelled());
 /// ```
 #[derive(Clone, Copy, Default)]
 pub struct Control<'a> {
     cancel: Option<&'a AtomicBool>,
+    /// A second flag: a job's own (cancel, time limit) beside the pool's (deadline, client gone).
+    also: Option<&'a AtomicBool>,
     progress: Option<&'a (dyn Fn(f64) + Sync)>,
 }
 
@@ -26,6 +30,7 @@ impl std::fmt::Debug for Control<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Control")
             .field("cancel", &self.cancel)
+            .field("also", &self.also)
             .field("progress", &self.progress.is_some())
             .finish()
     }
@@ -36,13 +41,19 @@ impl<'a> Control<'a> {
     pub const fn new() -> Self {
         Self {
             cancel: None,
+            also: None,
             progress: None,
         }
     }
 
-    /// Stop when `flag` becomes true.
+    /// Stop when `flag` becomes true. A second call adds a second flag (stop
+    /// when either rises); a third replaces the second.
     pub const fn with_cancel(mut self, flag: &'a AtomicBool) -> Self {
-        self.cancel = Some(flag);
+        if self.cancel.is_none() {
+            self.cancel = Some(flag);
+        } else {
+            self.also = Some(flag);
+        }
         self
     }
 
@@ -56,6 +67,7 @@ impl<'a> Control<'a> {
     #[inline]
     pub fn is_cancelled(&self) -> bool {
         self.cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+            || self.also.is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
     /// Reports a progress fraction, clamped to `[0, 1]`.

@@ -613,7 +613,7 @@ impl Operation for GridDistanceRequest {
             });
         }
         let document = serde_json::json!({ "stats": result.stats });
-        Ok(OpOutput { arrays, document })
+        Ok(OpOutput::new(arrays, document))
     }
 }
 

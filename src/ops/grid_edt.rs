@@ -150,15 +150,15 @@ impl Operation for GridEdtRequest {
                 spacing,
             });
         }
-        Ok(OpOutput {
+        Ok(OpOutput::new(
             arrays,
-            document: serde_json::json!({"stats": {
+            serde_json::json!({"stats": {
                 "cells": grid.len(),
                 "features": feature_cells,
                 "max_distance": max_distance,
                 "seconds": seconds,
             }}),
-        })
+        ))
     }
 }
 

@@ -420,14 +420,14 @@ impl Operation for GridMetricRequest {
         };
         let array = ArrayD::from_shape_vec(ndarray::IxDyn(&shape), w)
             .map_err(|e| OpError::invalid("dataset", e.to_string()))?;
-        Ok(OpOutput {
-            arrays: vec![OutputArray {
+        Ok(OpOutput::new(
+            vec![OutputArray {
                 name: "metric".into(),
                 array: ArrayData::F64(array),
                 spacing: Some(spacing),
             }],
-            document: serde_json::json!({ "stats": stats }),
-        })
+            serde_json::json!({ "stats": stats }),
+        ))
     }
 }
 

@@ -206,8 +206,8 @@ impl Operation for GridOffsetRequest {
         let after = offset.iter().filter(|&&m| m).count();
         let spacing = Some(grid.spacing().to_vec());
         let offset_u8: Vec<u8> = offset.iter().map(|&m| u8::from(m)).collect();
-        Ok(OpOutput {
-            arrays: vec![
+        Ok(OpOutput::new(
+            vec![
                 OutputArray {
                     name: "offset".into(),
                     array: ArrayData::U8(shaped(&grid, offset_u8)?),
@@ -219,13 +219,13 @@ impl Operation for GridOffsetRequest {
                     spacing,
                 },
             ],
-            document: serde_json::json!({"stats": {
+            serde_json::json!({"stats": {
                 "cells_before": before,
                 "cells_after": after,
                 "area_before": before as f64 * cell_volume,
                 "area_after": after as f64 * cell_volume,
                 "seconds": started.elapsed().as_secs_f64(),
             }}),
-        })
+        ))
     }
 }

@@ -118,6 +118,22 @@ pub struct GridPathsRequest {
     /// LineStrings, 2D) or `svg` (the paths over a PNG of the image, 2D).
     #[serde(default)]
     pub format: PathFormat,
+    /// A cached cost taken before the inputs were loaded
+    /// ([`Operation::datasets_to_load`]); not part of the request.
+    #[serde(skip)]
+    pub pinned: PinnedCost,
+}
+
+/// A cost taken from the [`DistanceCache`] when the request arrived, so that
+/// an eviction between then and the run cannot leave the run without its
+/// inputs (which were not loaded). Requests compare equal whatever it holds.
+#[derive(Debug, Clone, Default)]
+pub struct PinnedCost(pub Option<Arc<CachedCost>>);
+
+impl PartialEq for PinnedCost {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 fn default_order() -> u8 {
@@ -514,6 +530,23 @@ impl Operation for GridPathsRequest {
         GridPathsRequest::dataset_ids(self)
     }
 
+    /// None when the caller's cache holds the (designed) cost, which is then
+    /// pinned; the SVG format still reads the image.
+    fn datasets_to_load(&mut self, inputs: &dyn Inputs) -> Vec<(String, String)> {
+        if self.cost.is_some() {
+            self.pinned = PinnedCost(
+                inputs
+                    .distance_cache()
+                    .and_then(|c| c.cost(&self.cost_key())),
+            );
+        }
+        if self.pinned.0.is_some() && self.format != PathFormat::Svg {
+            Vec::new()
+        } else {
+            self.dataset_ids()
+        }
+    }
+
     /// No arrays. Document: `{"paths": [PathOut], "chain"?: ChainOut,
     /// "stats": PathsStats, "geojson"?: FeatureCollection, "svg"?: string}`.
     fn run(
@@ -522,11 +555,9 @@ impl Operation for GridPathsRequest {
         limits: &OpLimits,
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
-        let result = execute(self, inputs, limits, control, None, None)?;
-        Ok(OpOutput {
-            arrays: Vec::new(),
-            document: result.document(),
-        })
+        let cache = inputs.distance_cache();
+        let result = execute(self, inputs, limits, control, cache, self.pinned.0.clone())?;
+        Ok(OpOutput::new(Vec::new(), result.document()))
     }
 }
 

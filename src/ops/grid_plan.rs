@@ -95,8 +95,8 @@ impl Operation for GridPlanRequest {
             other => OpError::invalid("obstacles", other.to_string()),
         })?;
         let spacing = Some(grid.spacing().to_vec());
-        Ok(OpOutput {
-            arrays: vec![
+        Ok(OpOutput::new(
+            vec![
                 OutputArray {
                     name: "clearance".into(),
                     array: ArrayData::F64(shaped(&grid, p.clearance)?),
@@ -108,13 +108,13 @@ impl Operation for GridPlanRequest {
                     spacing,
                 },
             ],
-            document: serde_json::json!({
+            serde_json::json!({
                 "path": p.path,
                 "length": p.length,
                 "min_clearance": p.min_clearance,
                 "radius": self.radius,
                 "widest_radius": p.widest,
             }),
-        })
+        ))
     }
 }

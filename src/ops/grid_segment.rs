@@ -508,6 +508,6 @@ impl Operation for GridSegmentRequest {
         if let Some(c) = contours {
             document["contours"] = c;
         }
-        Ok(OpOutput { arrays, document })
+        Ok(OpOutput::new(arrays, document))
     }
 }

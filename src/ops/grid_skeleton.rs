@@ -101,8 +101,8 @@ impl Operation for GridSkeletonRequest {
                 serde_json::to_value(g).map_err(|e| OpError::invalid("mask", e.to_string()))?;
         }
         let sk_u8: Vec<u8> = sk.mask.iter().map(|&m| u8::from(m)).collect();
-        Ok(OpOutput {
-            arrays: vec![
+        Ok(OpOutput::new(
+            vec![
                 OutputArray {
                     name: "skeleton".into(),
                     array: ArrayData::U8(shaped(&grid, sk_u8)?),
@@ -115,6 +115,6 @@ impl Operation for GridSkeletonRequest {
                 },
             ],
             document,
-        })
+        ))
     }
 }

@@ -266,6 +266,6 @@ impl Operation for GridTensorDistanceRequest {
             });
         }
         let document = serde_json::json!({ "stats": stats, "paths": paths });
-        Ok(OpOutput { arrays, document })
+        Ok(OpOutput::new(arrays, document))
     }
 }

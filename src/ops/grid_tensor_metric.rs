@@ -73,15 +73,15 @@ impl Operation for GridTensorMetricRequest {
         full.push(per_cell(shape.len()));
         let array = ArrayD::from_shape_vec(IxDyn(&full), values)
             .map_err(|e| OpError::invalid("tensor", e.to_string()))?;
-        Ok(OpOutput {
-            arrays: vec![OutputArray {
+        Ok(OpOutput::new(
+            vec![OutputArray {
                 name: "tensor".into(),
                 array: ArrayData::F64(array),
                 spacing: None,
             }],
-            document: serde_json::json!({
+            serde_json::json!({
                 "stats": {"cells": grid.len(), "max_anisotropy": field.max_anisotropy(grid.len())}
             }),
-        })
+        ))
     }
 }

@@ -7,8 +7,11 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::{Inputs, OpError, OpLimits};
+use ndarray::ArrayD;
+
+use super::{Inputs, OpError, OpLimits, OpOutput, OutputArray, OutputMesh};
 use crate::io::mesh::MeshReport;
+use crate::io::ArrayData;
 use crate::numerics::mesh::{
     mesh_distance, HeatOptions, HeatSolver, MeshDistance, MeshDistanceOptions, MeshMethod,
     MeshSolveError, SurfacePoint, Topology, TriMesh,
@@ -321,4 +324,44 @@ pub(crate) fn read_weights(inputs: &dyn Inputs, id: &str, n: usize) -> Result<Ve
         ));
     }
     Ok(v)
+}
+
+/// The per-vertex outputs as 1D arrays.
+pub(crate) fn arrays(d: MeshDistance) -> Vec<OutputArray> {
+    let n = d.distance.len();
+    let dist = ArrayD::from_shape_vec(vec![n], d.distance).map(ArrayData::F64);
+    let lab = ArrayD::from_shape_vec(vec![n], d.labels).map(ArrayData::I32);
+    let mut out = Vec::new();
+    if let Ok(a) = dist {
+        out.push(OutputArray {
+            name: "distance".into(),
+            array: a,
+            spacing: None,
+        });
+    }
+    if let Ok(a) = lab {
+        out.push(OutputArray {
+            name: "labels".into(),
+            array: a,
+            spacing: None,
+        });
+    }
+    out
+}
+
+/// The output of a per-vertex operation: the arrays of [`arrays`], and the
+/// mesh `mesh` carrying them as `distance` and `label` vertex properties.
+pub(crate) fn vertex_output(
+    inputs: &dyn Inputs,
+    mesh: &str,
+    d: MeshDistance,
+    document: serde_json::Value,
+) -> OpOutput {
+    let mut out = OpOutput::new(arrays(d), document);
+    out.mesh = inputs.mesh(mesh).map(|m| OutputMesh {
+        name: "result".into(),
+        mesh: m,
+        vertex_properties: vec![("distance", "distance"), ("label", "labels")],
+    });
+    out
 }

@@ -3,16 +3,14 @@
 
 use std::time::Instant;
 
-use ndarray::ArrayD;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::mesh_common::{
-    check_points, get_mesh, read_weights, run_distance, validate_common, HeatSpec, MeshMethodSpec,
-    MeshPointSpec, MeshStats,
+    check_points, get_mesh, read_weights, run_distance, validate_common, vertex_output, HeatSpec,
+    MeshMethodSpec, MeshPointSpec, MeshStats,
 };
-use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
-use crate::io::ArrayData;
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::MeshDistance;
 use crate::numerics::Control;
 
@@ -83,29 +81,6 @@ pub(crate) fn compute(
     Ok((d, doc))
 }
 
-/// The per-vertex outputs as 1D arrays.
-pub(crate) fn arrays(d: MeshDistance) -> Vec<OutputArray> {
-    let n = d.distance.len();
-    let dist = ArrayD::from_shape_vec(vec![n], d.distance).map(ArrayData::F64);
-    let lab = ArrayD::from_shape_vec(vec![n], d.labels).map(ArrayData::I32);
-    let mut out = Vec::new();
-    if let Ok(a) = dist {
-        out.push(OutputArray {
-            name: "distance".into(),
-            array: a,
-            spacing: None,
-        });
-    }
-    if let Ok(a) = lab {
-        out.push(OutputArray {
-            name: "labels".into(),
-            array: a,
-            spacing: None,
-        });
-    }
-    out
-}
-
 impl Operation for MeshDistanceRequest {
     const NAME: &'static str = "mesh.distance";
 
@@ -128,9 +103,6 @@ impl Operation for MeshDistanceRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         let (d, document) = compute(self, inputs, limits, control)?;
-        Ok(OpOutput {
-            arrays: arrays(d),
-            document,
-        })
+        Ok(vertex_output(inputs, &self.mesh, d, document))
     }
 }

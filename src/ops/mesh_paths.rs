@@ -167,9 +167,6 @@ impl Operation for MeshPathsRequest {
             "solve_seconds": started.elapsed().as_secs_f64(),
             "paths": paths,
         });
-        Ok(OpOutput {
-            arrays: Vec::new(),
-            document,
-        })
+        Ok(OpOutput::new(Vec::new(), document))
     }
 }

@@ -6,8 +6,8 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::mesh_common::vertex_output;
 use super::mesh_common::{get_mesh, heat_solver, solve_error, HeatSpec, MeshMethodSpec, MeshStats};
-use super::mesh_distance::arrays;
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
 use crate::numerics::mesh::MeshMethod;
@@ -118,9 +118,6 @@ impl Operation for MeshSampleRequest {
             "covering_radius": s.covering_radius,
             "stats": stats,
         });
-        Ok(OpOutput {
-            arrays: arrays(s.field),
-            document,
-        })
+        Ok(vertex_output(inputs, &self.mesh, s.field, document))
     }
 }

@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::mesh_common::get_mesh;
-use super::mesh_distance::{arrays, compute, MeshDistanceRequest};
+use super::mesh_common::vertex_output;
+use super::mesh_distance::{compute, MeshDistanceRequest};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::Control;
 
@@ -74,9 +75,6 @@ impl Operation for MeshVoronoiRequest {
                 serde_json::to_value(&cells).unwrap_or_default(),
             );
         }
-        Ok(OpOutput {
-            arrays: arrays(d),
-            document,
-        })
+        Ok(vertex_output(inputs, &self.0.mesh, d, document))
     }
 }

@@ -31,6 +31,8 @@ pub mod mesh_distance;
 pub mod mesh_paths;
 pub mod mesh_sample;
 pub mod mesh_voronoi;
+pub mod parse;
+pub mod registry;
 pub mod tensor_spec;
 
 use std::sync::Arc;
@@ -62,6 +64,13 @@ pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
     /// The dataset ids the request reads, each with the JSON path of the field naming it.
     fn dataset_ids(&self) -> Vec<(String, String)>;
 
+    /// The datasets still to load, given what the caller's caches hold (a
+    /// hook: `grid.paths` takes its cached cost here and needs no dataset).
+    /// Default: every one of [`Operation::dataset_ids`].
+    fn datasets_to_load(&mut self, _inputs: &dyn Inputs) -> Vec<(String, String)> {
+        self.dataset_ids()
+    }
+
     /// Runs the operation. Polls `control` for cancellation and reports progress through it.
     fn run(
         &self,
@@ -69,6 +78,59 @@ pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
         limits: &OpLimits,
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError>;
+}
+
+/// An [`Operation`] of any type, as the runner, the job queue and the
+/// registry hold it (one box instead of one generic copy per caller).
+pub trait DynOperation: Send + Sync + std::fmt::Debug {
+    /// [`Operation::NAME`].
+    fn name(&self) -> &'static str;
+    /// [`Operation::validate`].
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError>;
+    /// [`Operation::dataset_ids`].
+    fn dataset_ids(&self) -> Vec<(String, String)>;
+    /// [`Operation::datasets_to_load`].
+    fn datasets_to_load(&mut self, inputs: &dyn Inputs) -> Vec<(String, String)>;
+    /// [`Operation::run`].
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError>;
+    /// The request as JSON, defaults filled in (what a job stores).
+    fn canonical_json(&self) -> Result<String, serde_json::Error>;
+}
+
+impl<O: Operation + std::fmt::Debug> DynOperation for O {
+    fn name(&self) -> &'static str {
+        O::NAME
+    }
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        Operation::validate(self, limits)
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        Operation::dataset_ids(self)
+    }
+
+    fn datasets_to_load(&mut self, inputs: &dyn Inputs) -> Vec<(String, String)> {
+        Operation::datasets_to_load(self, inputs)
+    }
+
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        Operation::run(self, inputs, limits, control)
+    }
+
+    fn canonical_json(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string(self)
+    }
 }
 
 /// What an operation returns, independent of where it is stored.
@@ -79,6 +141,55 @@ pub struct OpOutput {
     /// The rest of the answer (statistics, paths, graphs) as a JSON object.
     /// The caller adds one entry per array, named after it, holding the stored dataset's reference.
     pub document: serde_json::Value,
+    /// A mesh to store as one dataset carrying some of `arrays` as per-vertex
+    /// properties (the synchronous answer of a mesh operation), if any.
+    pub mesh: Option<OutputMesh>,
+}
+
+impl OpOutput {
+    /// Arrays and a document, no mesh.
+    pub fn new(arrays: Vec<OutputArray>, document: serde_json::Value) -> Self {
+        Self {
+            arrays,
+            document,
+            mesh: None,
+        }
+    }
+
+    /// The document as a JSON object: an object as it is, `null` as an empty
+    /// one, anything else under `result`. Stored outputs are added to it.
+    pub fn document_map(&mut self) -> serde_json::Map<String, serde_json::Value> {
+        match std::mem::take(&mut self.document) {
+            serde_json::Value::Object(map) => map,
+            serde_json::Value::Null => serde_json::Map::new(),
+            other => {
+                let mut map = serde_json::Map::new();
+                map.insert("result".into(), other);
+                map
+            }
+        }
+    }
+
+    /// The array named `name`, if any.
+    pub fn array(&self, name: &str) -> Option<&ArrayData> {
+        self.arrays
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| &a.array)
+    }
+}
+
+/// A mesh output: the input mesh with per-vertex arrays of the output as
+/// properties, stored under `name` in the answer.
+#[derive(Debug, Clone)]
+pub struct OutputMesh {
+    /// Key of its reference in the answer (`result`).
+    pub name: String,
+    /// The mesh.
+    pub mesh: Arc<mesh_common::MeshInput>,
+    /// `(property name, array name)`: which of the output's arrays become
+    /// which vertex property (`("label", "labels")`).
+    pub vertex_properties: Vec<(&'static str, &'static str)>,
 }
 
 /// One named output array.
@@ -122,8 +233,16 @@ pub trait Inputs {
     ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
         build().map(|s| (Arc::new(s), false))
     }
+
+    /// The caller's cache of designed costs and distance maps for
+    /// interactive paths, if it keeps one. Default: none.
+    fn distance_cache(&self) -> Option<&grid_paths::DistanceCache> {
+        None
+    }
 }
 
+/// Where an operation finds the datasets its request names: those an
+/// [`Operation`] reads, plus what the caller keeps between requests.
 impl Inputs for std::collections::HashMap<String, InputArray> {
     fn get(&self, id: &str) -> Option<InputArray> {
         std::collections::HashMap::get(self, id).cloned()

@@ -11,11 +11,11 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::datasets::{valid_id, DatasetMeta, StoreError};
-use crate::http::error::{io_error, ApiError};
 use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
 use crate::http::AppState;
 use crate::io::mesh::{read_mesh, write, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData, Decoded, Format, Limits};
+use crate::problem::{io_error, ApiError};
 
 /// Largest array offered as JSON.
 pub const JSON_MAX_CELLS: usize = 65_536;

@@ -12,19 +12,22 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use super::datasets::{decode_upload, format_from_content_type};
-use crate::datasets::{DatasetMeta, SourceFormat, StoreError};
-use crate::http::error::ApiError;
-use crate::http::extract::{json_rejection, ApiJson, ApiQuery};
+use crate::datasets::{DatasetMeta, SourceFormat};
+use crate::http::extract::{ApiJson, ApiQuery};
+use crate::http::operation::{add_timing, run, store_output};
 use crate::http::AppState;
-use crate::io::{self, ArrayData, Format};
-use crate::ops::grid_distance::{self, GridDistanceRequest, SolveStats};
-use crate::ops::{InputArray, OpError};
+use crate::io::{self, Format};
+use crate::ops::grid_distance::{GridDistanceRequest, SolveStats};
+use crate::ops::parse::parse_json;
+use crate::ops::InputArray;
+use crate::problem::ApiError;
+use crate::runner::Ran;
 
 /// Id under which the `file` part of a multipart request is visible.
 pub const FILE_ID: &str = "file";
 
 /// A stored result.
-#[derive(Debug, Serialize, ToSchema)]
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
 pub struct DatasetRef {
     /// Dataset id.
     pub id: String,
@@ -154,9 +157,9 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
                 "params" => {
                     let bytes = field.bytes().await.map_err(multipart_error)?;
                     let bytes = with_file_cost(&bytes);
-                    let parsed = axum::Json::<GridDistanceRequest>::from_bytes(&bytes)
-                        .map_err(|e| prefix_field(json_rejection(e), "params"))?;
-                    params = Some(parsed.0);
+                    let parsed = parse_json::<GridDistanceRequest>(&bytes)
+                        .map_err(|e| ApiError::from(e).nested_in("params"))?;
+                    params = Some(parsed);
                 }
                 "file" => {
                     let mut headers = HeaderMap::new();
@@ -164,7 +167,7 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
                         headers.insert(header::CONTENT_TYPE, ct);
                     }
                     let hint =
-                        format_from_content_type(&headers).map_err(|e| prefix_field(e, "file"))?;
+                        format_from_content_type(&headers).map_err(|e| e.nested_in("file"))?;
                     file = Some((field.bytes().await.map_err(multipart_error)?, hint));
                 }
                 other => {
@@ -204,15 +207,6 @@ fn with_file_cost(bytes: &[u8]) -> Vec<u8> {
     serde_json::to_vec(&params).unwrap_or_else(|_| bytes.to_vec())
 }
 
-fn prefix_field(mut e: ApiError, prefix: &str) -> ApiError {
-    e.problem.field = Some(match e.problem.field.take() {
-        Some(f) if f != "body" && f != "Content-Type" => format!("{prefix}.{f}"),
-        _ => prefix.to_string(),
-    });
-    e.problem.detail = format!("{prefix}: {}", e.problem.detail);
-    e
-}
-
 fn wants_npy(query: &DistanceQuery, headers: &HeaderMap) -> bool {
     match query.format {
         Some(DirectFormat::Npy) => true,
@@ -222,22 +216,6 @@ fn wants_npy(query: &DistanceQuery, headers: &HeaderMap) -> bool {
             .and_then(|v| v.to_str().ok())
             .is_some_and(|a| a.to_ascii_lowercase().contains("application/x-npy")),
     }
-}
-
-async fn store_result(
-    state: &AppState,
-    array: ArrayData,
-    spacing: &[f64],
-) -> Result<DatasetRef, ApiError> {
-    let meta = state
-        .store
-        .create(
-            Arc::new(array),
-            Some(spacing.to_vec()),
-            SourceFormat::Result,
-        )
-        .await?;
-    Ok(DatasetRef::from(&meta))
 }
 
 /// Computes a geodesic distance map.
@@ -299,10 +277,13 @@ pub async fn distance(
     let direct = wants_npy(&query, &headers);
     let DistanceBody { mut params, file } = body;
     params.validate(&state.op_limits)?;
+    let upload = match file {
+        Some((bytes, hint)) => Some(decode_upload(bytes, hint, state.io_limits, "file").await?),
+        None => None,
+    };
     if super::jobs::prefers_async(&headers) {
-        if let Some((bytes, hint)) = file {
+        if let Some(decoded) = upload {
             // A job reads datasets only: store the uploaded cost as one first.
-            let decoded = decode_upload(bytes, hint, state.io_limits, "file").await?;
             let meta = state
                 .store
                 .create(
@@ -318,43 +299,27 @@ pub async fn distance(
         return super::jobs::respond_async(&state, &headers, &params).await;
     }
 
-    let mut inputs: HashMap<String, InputArray> = HashMap::new();
-    if let Some((bytes, hint)) = file {
-        let decoded = decode_upload(bytes, hint, state.io_limits, "file").await?;
-        inputs.insert(
-            FILE_ID.into(),
+    let mut uploads = HashMap::new();
+    if let Some(decoded) = upload {
+        uploads.insert(
+            FILE_ID.to_string(),
             InputArray {
                 array: Arc::new(decoded.array),
                 spacing: decoded.spacing,
             },
         );
     }
-    for (field, id) in params.dataset_ids() {
-        if inputs.contains_key(&id) {
-            continue;
-        }
-        match state.store.load(&id).await {
-            Ok(input) => {
-                inputs.insert(id, input);
-            }
-            Err(StoreError::NotFound(_)) => {
-                return Err(OpError::UnknownDataset { field, id }.into())
-            }
-            Err(e) => return Err(e.into()),
-        }
-    }
-
-    let limits = state.op_limits;
-    let (result, timing) = state
-        .pool
-        .run("grid.distance", state.solve_timeout, move |control| {
-            grid_distance::execute(&params, &inputs, &limits, control)
-        })
-        .await?;
-    let result = result?;
+    let Ran { mut output, timing } = run(&state, Box::new(params), uploads).await?;
 
     if direct {
-        let distance = ArrayData::F64(result.distance);
+        let stop = output.document["stats"]["stop"]
+            .as_str()
+            .unwrap_or_default()
+            .to_string();
+        let Some(at) = output.arrays.iter().position(|a| a.name == "distance") else {
+            return Err(ApiError::internal("grid.distance returned no distance"));
+        };
+        let distance = output.arrays.swap_remove(at).array;
         let bytes = tokio::task::spawn_blocking(move || io::encode_npy(&distance))
             .await
             .map_err(ApiError::internal)?
@@ -362,34 +327,14 @@ pub async fn distance(
         return Ok((
             [
                 (header::CONTENT_TYPE, "application/x-npy".to_string()),
-                (
-                    header::HeaderName::from_static("x-geodex-stop"),
-                    result.stats.stop.clone(),
-                ),
+                (header::HeaderName::from_static("x-geodex-stop"), stop),
             ],
             bytes,
         )
             .into_response());
     }
 
-    let distance = store_result(&state, ArrayData::F64(result.distance), &result.spacing).await?;
-    let labels = match result.labels {
-        Some(l) => Some(store_result(&state, ArrayData::I32(l), &result.spacing).await?),
-        None => None,
-    };
-    let frozen_order = match result.frozen_order {
-        Some(o) => Some(store_result(&state, ArrayData::I64(o), &result.spacing).await?),
-        None => None,
-    };
-    Ok(Json(DistanceResponse {
-        distance,
-        labels,
-        frozen_order,
-        stats: DistanceStats {
-            solve: result.stats,
-            queue_seconds: timing.queue_seconds,
-            total_seconds: started.elapsed().as_secs_f64(),
-        },
-    })
-    .into_response())
+    let mut doc = store_output(&state, output).await?;
+    add_timing(&mut doc, &timing, started);
+    Ok(Json(doc).into_response())
 }

@@ -7,8 +7,8 @@ use axum::Json;
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use crate::http::error::ApiError;
 use crate::http::AppState;
+use crate::problem::ApiError;
 
 /// Liveness answer.
 #[derive(Debug, Serialize, ToSchema)]

@@ -14,13 +14,13 @@ use axum::Json;
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::http::error::ApiError;
 use crate::http::extract::{ApiJson, ApiPath, ApiQuery};
 use crate::http::routes::datasets::{encode, negotiate, DataQuery, OutputFormat};
 use crate::http::AppState;
 use crate::io::{self, Format};
 use crate::jobs::{Job, JobState, Jobs, Priority, SubmitJob};
 use crate::ops::Operation;
+use crate::problem::{ApiError, Kind};
 
 /// Header naming a client's idempotency key.
 pub const IDEMPOTENCY_KEY: &str = "idempotency-key";
@@ -303,10 +303,8 @@ pub async fn cancel(
                 .insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
             Ok(res)
         }
-        JobState::Succeeded | JobState::Failed => Err(ApiError::new(
-            StatusCode::CONFLICT,
-            "job-finished",
-            "The job already ended",
+        JobState::Succeeded | JobState::Failed => Err(ApiError::of(
+            Kind::JobFinished,
             format!(
                 "job '{}' already {}; there is nothing to cancel",
                 job.id,
@@ -356,10 +354,8 @@ pub async fn result(
         .await?
         .ok_or_else(|| job_not_found(&path.id))?;
     if row.state != "succeeded" {
-        return Err(ApiError::new(
-            StatusCode::CONFLICT,
-            "job-not-succeeded",
-            "The job has no results",
+        return Err(ApiError::of(
+            Kind::JobNotSucceeded,
             format!(
                 "job '{}' is {}; results exist once it succeeded",
                 row.id, row.state

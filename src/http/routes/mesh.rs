@@ -3,25 +3,25 @@
 //! on the solver pool with the store's heat-factorisation cache, and store
 //! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
 
+use std::collections::HashMap;
+
 use axum::extract::State;
 use axum::Json;
 use serde::Serialize;
 use serde_json::Value;
 use utoipa::ToSchema;
 
-use crate::datasets::inputs::StoreInputs;
-use crate::datasets::SourceFormat;
-use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
+use crate::http::operation::{run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
-use crate::io::mesh::write::VertexProperty;
-use crate::io::ArrayData;
 use crate::ops::mesh_distance::MeshDistanceRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
 use crate::ops::mesh_sample::MeshSampleRequest;
 use crate::ops::mesh_voronoi::MeshVoronoiRequest;
 use crate::ops::Operation;
+use crate::problem::ApiError;
+use crate::runner::Ran;
 
 /// The answer of a mesh operation.
 #[derive(Debug, Serialize, ToSchema)]
@@ -37,61 +37,18 @@ pub struct MeshResponse {
     pub details: serde_json::Map<String, Value>,
 }
 
-async fn run_mesh_op<O: Operation>(
+async fn run_mesh_op<O: Operation + std::fmt::Debug>(
     state: &AppState,
     request: O,
 ) -> Result<Json<MeshResponse>, ApiError> {
-    request.validate(&state.op_limits)?;
-    let ids = request.dataset_ids();
-    let mesh_id = ids
-        .iter()
-        .find(|(field, _)| field == "mesh")
-        .map(|(_, id)| id.clone());
-    let mut inputs = StoreInputs::new(state.store.clone());
-    inputs.load(ids).await?;
-    let limits = state.op_limits;
-    let mesh = mesh_id.and_then(|id| inputs.meshes.get(&id).cloned());
-    let (result, _timing) = state
-        .pool
-        .run(O::NAME, state.solve_timeout, move |control| {
-            request.run(&inputs, &limits, control)
-        })
-        .await?;
-    let output = result?;
-    let mut details = match output.document {
-        Value::Object(map) => map,
-        _ => serde_json::Map::new(),
-    };
-    let get = |name: &str| {
-        output
-            .arrays
-            .iter()
-            .find(|a| a.name == name)
-            .map(|a| &a.array)
-    };
-    let result = match (mesh, get("distance"), get("labels")) {
-        (Some(mesh), Some(ArrayData::F64(d)), Some(ArrayData::I32(l))) => {
-            let (d, l) = (
-                d.iter().copied().collect::<Vec<f64>>(),
-                l.iter().copied().collect::<Vec<i32>>(),
-            );
-            let store = state.store.clone();
-            let meta = crate::datasets::blocking(move || {
-                store.create_mesh_blocking(
-                    &mesh.mesh,
-                    mesh.report.clone(),
-                    &[
-                        VertexProperty::F64("distance", &d),
-                        VertexProperty::I32("label", &l),
-                    ],
-                    SourceFormat::Result,
-                )
-            })
-            .await?;
-            Some(DatasetRef::from(&meta))
-        }
-        _ => None,
-    };
+    let Ran { output, .. } = run(state, Box::new(request), HashMap::new()).await?;
+    let mut details = store_output(state, output).await?;
+    let result = details
+        .remove("result")
+        .map(serde_json::from_value)
+        .transpose();
+    let result = result.map_err(ApiError::internal)?;
+    // The repairs of the stored mesh are in its dataset's metadata.
     details.remove("mesh_report");
     Ok(Json(MeshResponse { result, details }))
 }

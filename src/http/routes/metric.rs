@@ -1,7 +1,7 @@
 //! `POST /v1/grid/metric`: the cost `W` designed from an image (intensity,
 //! edges, vesselness), stored as a dataset to look at before using it.
 
-use std::collections::HashMap;
+use std::time::Instant;
 
 use axum::extract::State;
 use axum::Json;
@@ -9,11 +9,11 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::grid::DatasetRef;
-use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
-use crate::http::operation::{run_on_pool, store_output};
+use crate::http::operation::respond;
 use crate::http::AppState;
 use crate::ops::grid_metric::{GridMetricRequest, MetricStats};
+use crate::problem::ApiError;
 
 /// Answer of `POST /v1/grid/metric`.
 #[derive(Debug, Serialize, ToSchema)]
@@ -56,6 +56,6 @@ pub async fn metric(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<GridMetricRequest>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let (output, _timing) = run_on_pool(&state, request, HashMap::new()).await?;
-    Ok(Json(store_output(&state, output).await?))
+    let doc = respond(&state, Box::new(request), Instant::now()).await?;
+    Ok(Json(serde_json::Value::Object(doc)))
 }

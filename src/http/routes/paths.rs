@@ -12,12 +12,12 @@ use axum::Json;
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use crate::datasets::StoreError;
-use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
+use crate::http::operation::{add_timing, run};
 use crate::http::AppState;
-use crate::ops::grid_paths::{self, ChainOut, GridPathsRequest, PathFormat, PathOut, PathsStats};
-use crate::ops::{InputArray, OpError, Operation};
+use crate::ops::grid_paths::{ChainOut, GridPathsRequest, PathFormat, PathOut, PathsStats};
+use crate::problem::ApiError;
+use crate::runner::Ran;
 
 /// Statistics of a paths request.
 #[derive(Debug, Serialize, ToSchema)]
@@ -94,54 +94,27 @@ pub async fn paths(
     ApiJson(request): ApiJson<GridPathsRequest>,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    request.validate(&state.op_limits)?;
     let format = request.format;
-    let cost = state.path_cache.cost(&request.cost_key());
-    let mut inputs: HashMap<String, InputArray> = HashMap::new();
-    if cost.is_none() || format == PathFormat::Svg {
-        for (field, id) in request.dataset_ids() {
-            match state.store.load(&id).await {
-                Ok(input) => {
-                    inputs.insert(id, input);
-                }
-                Err(StoreError::NotFound(_)) => {
-                    return Err(OpError::UnknownDataset { field, id }.into())
-                }
-                Err(e) => return Err(e.into()),
-            }
-        }
-    }
-    let cache = state.path_cache.clone();
-    let limits = state.op_limits;
-    let (result, timing) = state
-        .pool
-        .run(
-            GridPathsRequest::NAME,
-            state.solve_timeout,
-            move |control| {
-                grid_paths::execute(&request, &inputs, &limits, control, Some(&cache), cost)
-            },
-        )
-        .await?;
-    let result = result?;
+    let Ran { output, timing } = run(&state, Box::new(request), HashMap::new()).await?;
+    let mut doc = output.document;
     match format {
         PathFormat::Geojson => {
-            let body = result.geojson.unwrap_or_default().to_string();
+            let body = doc.get("geojson").cloned().unwrap_or_default().to_string();
             Ok(([(header::CONTENT_TYPE, "application/geo+json")], body).into_response())
         }
         PathFormat::Svg => {
-            let body = result.svg.unwrap_or_default();
+            let body = doc
+                .get("svg")
+                .and_then(|s| s.as_str())
+                .unwrap_or_default()
+                .to_string();
             Ok(([(header::CONTENT_TYPE, "image/svg+xml")], body).into_response())
         }
-        PathFormat::Json => Ok(Json(PathsResponse {
-            paths: result.paths,
-            chain: result.chain,
-            stats: PathsRequestStats {
-                run: result.stats,
-                queue_seconds: timing.queue_seconds,
-                total_seconds: started.elapsed().as_secs_f64(),
-            },
-        })
-        .into_response()),
+        PathFormat::Json => {
+            if let serde_json::Value::Object(map) = &mut doc {
+                add_timing(map, &timing, started);
+            }
+            Ok(Json(doc).into_response())
+        }
     }
 }

@@ -4,7 +4,7 @@
 //! struct of [`crate::ops`]; the answer is the operation's JSON document with
 //! one dataset reference per output array.
 
-use std::collections::HashMap;
+use std::time::Instant;
 
 use axum::extract::State;
 use axum::Json;
@@ -12,9 +12,8 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::grid::DatasetRef;
-use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
-use crate::http::operation::{run_on_pool, store_output};
+use crate::http::operation::respond;
 use crate::http::AppState;
 use crate::ops::grid_edt::GridEdtRequest;
 use crate::ops::grid_offset::GridOffsetRequest;
@@ -22,17 +21,14 @@ use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_segment::GridSegmentRequest;
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::Operation;
+use crate::problem::ApiError;
 
-async fn run<O: Operation>(
+async fn run<O: Operation + std::fmt::Debug>(
     state: &AppState,
     request: O,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let (output, timing) = run_on_pool(state, request, HashMap::new()).await?;
-    let mut doc = store_output(state, output).await?;
-    if let Some(stats) = doc.get_mut("stats").and_then(|s| s.as_object_mut()) {
-        stats.insert("queue_seconds".into(), timing.queue_seconds.into());
-    }
-    Ok(Json(doc))
+    let doc = respond(state, Box::new(request), Instant::now()).await?;
+    Ok(Json(serde_json::Value::Object(doc)))
 }
 
 /// Answer of `POST /v1/grid/edt`.

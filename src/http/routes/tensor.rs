@@ -2,7 +2,6 @@
 //! anisotropic (Riemannian) operations, thin handlers over
 //! [`crate::http::operation`].
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use axum::extract::State;
@@ -13,12 +12,12 @@ use utoipa::ToSchema;
 
 use super::grid::DatasetRef;
 
-use crate::http::error::ApiError;
 use crate::http::extract::ApiJson;
-use crate::http::operation::{run_on_pool, store_output};
+use crate::http::operation::respond;
 use crate::http::AppState;
 use crate::ops::grid_tensor_distance::{GridTensorDistanceRequest, TensorPath, TensorSolveStats};
 use crate::ops::grid_tensor_metric::GridTensorMetricRequest;
+use crate::problem::ApiError;
 
 /// Statistics of a tensor distance request.
 #[derive(Debug, Serialize, ToSchema)]
@@ -113,17 +112,8 @@ pub async fn tensor_distance(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<GridTensorDistanceRequest>,
 ) -> Result<Json<Value>, ApiError> {
-    let started = Instant::now();
-    let (output, timing) = run_on_pool(&state, request, HashMap::new()).await?;
-    let mut doc = store_output(&state, output).await?;
-    if let Some(stats) = doc.get_mut("stats").and_then(Value::as_object_mut) {
-        stats.insert("queue_seconds".into(), timing.queue_seconds.into());
-        stats.insert(
-            "total_seconds".into(),
-            started.elapsed().as_secs_f64().into(),
-        );
-    }
-    Ok(Json(doc))
+    let doc = respond(&state, Box::new(request), Instant::now()).await?;
+    Ok(Json(Value::Object(doc)))
 }
 
 /// Builds a tensor field (a designed metric) and stores it as a dataset.
@@ -159,6 +149,6 @@ pub async fn tensor_metric(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<GridTensorMetricRequest>,
 ) -> Result<Json<Value>, ApiError> {
-    let (output, _) = run_on_pool(&state, request, HashMap::new()).await?;
-    Ok(Json(store_output(&state, output).await?))
+    let doc = respond(&state, Box::new(request), Instant::now()).await?;
+    Ok(Json(Value::Object(doc)))
 }
