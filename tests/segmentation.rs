@@ -7,12 +7,12 @@ use std::sync::Arc;
 use geodex::io::ArrayData;
 use geodex::numerics::segmentation::dice;
 use geodex::numerics::Control;
-use geodex::ops::grid_distance::{CostSpec, InterpretationSpec};
 use geodex::ops::grid_edt::{EdtMode, GridEdtRequest};
 use geodex::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use geodex::ops::grid_plan::GridPlanRequest;
 use geodex::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use geodex::ops::grid_skeleton::GridSkeletonRequest;
+use geodex::ops::spec::cost::{CostSpec, InterpretationSpec};
 use geodex::ops::{InputArray, OpError, OpLimits, OpOutput, Operation};
 use ndarray::ArrayD;
 

@@ -30,11 +30,10 @@ use clap::{ArgGroup, Args, ValueEnum};
 use super::run::{run_operation, CliInputs, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
-use crate::ops::grid_distance::{
-    ConnectivitySpec, CostSpec, GridDistanceRequest, InterpretationSpec, MethodSpec, OutputSpec,
-    SourceSpec, StopSpec,
-};
-use crate::ops::tensor_spec::{ComponentsTensor, TensorSpec};
+use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
+use crate::ops::spec::distance::GridDistanceRequest;
+use crate::ops::spec::scheme::{ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec, StopSpec};
+use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpError};
 
 /// Flags of `geodex distance`.

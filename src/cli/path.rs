@@ -27,8 +27,8 @@ use super::distance::{
     flag, op_error, parse_points, point_sources, run_error, DistanceError, SchemeFlags,
 };
 use super::run::{run_operation, CliRunError};
-use crate::ops::grid_metric::DesignSpec;
 use crate::ops::grid_paths::{GridPathsRequest, PathFormat, PathOut};
+use crate::ops::spec::design::DesignSpec;
 
 /// Flags of `geodex path`.
 #[derive(Debug, Clone, Args)]

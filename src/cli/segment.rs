@@ -22,12 +22,12 @@ use clap::Args;
 use super::run::{run_on, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
-use crate::ops::grid_distance::{CostSpec, InterpretationSpec};
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
+use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
 use crate::ops::{InputArray, OpError, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.

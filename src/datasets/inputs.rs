@@ -9,7 +9,7 @@ use std::sync::Arc;
 use super::{DatasetStore, StoreError};
 use crate::numerics::mesh::{HeatSolver, MeshSolveError};
 use crate::ops::grid_paths::DistanceCache;
-use crate::ops::mesh_common::MeshInput;
+use crate::ops::spec::mesh::MeshInput;
 use crate::ops::{InputArray, Inputs};
 
 /// Why the inputs of a request could not be loaded.

@@ -15,7 +15,7 @@ use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits, MeshReport};
 use crate::io::DType;
 use crate::numerics::mesh::{HeatSolver, TriMesh};
 
-pub use crate::ops::mesh_common::MeshInput;
+pub use crate::ops::spec::mesh::MeshInput;
 
 /// Most meshes and factorisations kept in memory.
 const MESH_CACHE_ENTRIES: usize = 8;

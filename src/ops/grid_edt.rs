@@ -6,11 +6,12 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_inputs::{check_spacing, fetch, grid_of, mask_of, shaped};
+use super::spec::grid::{check_spacing, fetch, grid_of, mask_of, shaped};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
-use crate::numerics::edt::{self, EdtError, EdtOptions, EdtOutput, NO_FEATURE};
+use crate::numerics::edt::{self, EdtOptions, EdtOutput, NO_FEATURE};
 use crate::numerics::Control;
+use crate::ops::spec::errors::edt_error;
 
 /// Request of `grid.edt` (`POST /v1/grid/edt`, `geodex edt`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -54,14 +55,6 @@ impl GridEdtRequest {
             return Err(OpError::invalid("mask", "a dataset id is required"));
         }
         check_spacing(&self.spacing)
-    }
-}
-
-/// Maps a transform error.
-pub fn edt_error(e: EdtError, field: &str) -> OpError {
-    match e {
-        EdtError::Cancelled => OpError::Cancelled,
-        other => OpError::invalid(field, other.to_string()),
     }
 }
 

@@ -13,10 +13,13 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_distance::{self, CostSpec, InterpretationSpec, SourceSpec};
-use super::grid_edt::edt_error;
-use super::grid_inputs::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
-use super::grid_segment::{cost_shape, distance_request, preload};
+use super::spec::cost::{CostSpec, InterpretationSpec};
+use super::spec::scheme::SourceSpec;
+
+use super::spec::distance::{self, cost_shape, distance_request};
+use super::spec::errors::edt_error;
+use super::spec::grid::preload;
+use super::spec::grid::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::segmentation::offset_euclidean;
@@ -177,7 +180,7 @@ impl Operation for GridOffsetRequest {
                         Some(self.radius * (1.0 + 1e-9) + 1e-12),
                     );
                     let shared = preload(inputs, &self.dataset_ids())?;
-                    let u: Vec<f64> = grid_distance::execute(&req, &shared, limits, control)
+                    let u: Vec<f64> = distance::execute(&req, &shared, limits, control)
                         .map_err(|e| match e {
                             OpError::Invalid { field, reason } if field.starts_with("sources") => {
                                 OpError::invalid("mask", reason)

@@ -40,11 +40,14 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_distance::{
-    check_metric_choice, eikonal_error, metric_dataset_ids, resolve_cost, stop_name,
-    ConnectivitySpec, CostSpec, GridDistanceRequest, MethodSpec, OutputSpec, SourceSpec, StopSpec,
+use super::spec::cost::{resolve_cost, CostSpec};
+use super::spec::distance::GridDistanceRequest;
+use super::spec::errors::eikonal_error;
+use super::spec::scheme::{
+    check_metric_choice, metric_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec,
+    SourceSpec, StopSpec,
 };
-use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
+use super::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::io::{render_png, ArrayData, Colormap, RenderOptions, RenderStyle};
 use crate::numerics::anisotropic::descent::Riemannian;
@@ -53,6 +56,9 @@ use crate::numerics::paths::{
     CellCost, DescentOptions, DistanceMap, Isotropic, MinimalPath, PathError, SourceSet,
 };
 use crate::numerics::{self, Control, EikonalProblem, Grid, IsotropicCost, Source, StopRules};
+use crate::ops::spec::defaults::default_order;
+use crate::ops::spec::defaults::default_step;
+use crate::ops::spec::defaults::default_true;
 
 /// Request of `grid.paths` (`POST /v1/grid/paths`, job operation
 /// `grid.paths`, and `geodex path` on the command line).
@@ -134,16 +140,6 @@ impl PartialEq for PinnedCost {
     fn eq(&self, _: &Self) -> bool {
         true
     }
-}
-
-fn default_order() -> u8 {
-    2
-}
-fn default_true() -> bool {
-    true
-}
-fn default_step() -> f64 {
-    0.5
 }
 
 /// The answer format of `grid.paths`.

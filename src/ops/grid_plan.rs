@@ -8,7 +8,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_inputs::{
+use super::spec::grid::{
     check_non_negative, check_point, check_spacing, fetch, grid_of, mask_of, shaped,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};

@@ -7,26 +7,27 @@
 //! smallest and the second smallest (other label) distances and their
 //! difference (see [`crate::numerics::segmentation`]).
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_distance::{
-    check_metric_choice, eikonal_error, metric_dataset_ids, resolve_cost, ConnectivitySpec,
-    CostSpec, GridDistanceRequest, MethodSpec, OutputSpec, SourceSpec, StopSpec,
-};
-use super::grid_inputs::{check_non_negative, check_point, check_spacing, fetch, shaped};
-use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
-use super::{InputArray, Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use super::spec::cost::{resolve_cost, CostSpec};
+use super::spec::errors::eikonal_error;
+use super::spec::grid::{check_non_negative, check_point, check_spacing, fetch, shaped};
+use super::spec::scheme::{check_metric_choice, metric_dataset_ids, ConnectivitySpec, MethodSpec};
+use super::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::anisotropic::TensorProblem;
 use crate::numerics::contours;
 use crate::numerics::eikonal::{EikonalOptions, EikonalProblem, Order, Source, StopRules};
 use crate::numerics::segmentation::voronoi;
 use crate::numerics::{self, Control};
+use crate::ops::spec::defaults::default_order;
+use crate::ops::spec::defaults::default_true;
 
 /// Most distinct labels in one request (one eikonal solve each).
 pub const MAX_LABELS: usize = 256;
@@ -78,14 +79,6 @@ pub struct GridSegmentRequest {
     /// Return the contours of each label as GeoJSON polygons (2D only). Default: true.
     #[serde(default = "default_true")]
     pub contours: bool,
-}
-
-fn default_order() -> u8 {
-    2
-}
-
-fn default_true() -> bool {
-    true
 }
 
 /// One seed: a label (>= 1) and a `point` or `cells`.
@@ -159,70 +152,8 @@ impl GridSegmentRequest {
 
 /// The metric of a segmentation, resolved once for every label's solve.
 enum SegmentMetric {
-    Cost(super::grid_distance::ResolvedCost),
-    Tensor(super::tensor_spec::ResolvedTensor),
-}
-
-/// The shape of the grid a cost spec describes.
-pub fn cost_shape(
-    cost: &CostSpec,
-    inputs: &dyn Inputs,
-    field: &str,
-) -> Result<Vec<usize>, OpError> {
-    match (&cost.dataset, &cost.shape) {
-        (Some(id), _) => Ok(fetch(inputs, &format!("{field}.dataset"), id)?
-            .array
-            .shape()
-            .to_vec()),
-        (None, Some(shape)) => Ok(shape.clone()),
-        (None, None) => Err(OpError::invalid(
-            field,
-            "give either `dataset`, or `constant` with `shape`",
-        )),
-    }
-}
-
-/// A `grid.distance` request from cell or point sources on the given metric.
-pub fn distance_request(
-    cost: &CostSpec,
-    spacing: &Option<Vec<f64>>,
-    obstacles: &Option<String>,
-    sources: Vec<SourceSpec>,
-    order: u8,
-    max_distance: Option<f64>,
-) -> GridDistanceRequest {
-    GridDistanceRequest {
-        cost: Some(cost.clone()),
-        metric: None,
-        spacing: spacing.clone(),
-        obstacles: obstacles.clone(),
-        sources,
-        method: MethodSpec::FastMarching,
-        order,
-        factoring: true,
-        connectivity: ConnectivitySpec::Diagonal,
-        stop: StopSpec {
-            targets: Vec::new(),
-            max_distance,
-            max_frozen: None,
-        },
-        outputs: OutputSpec {
-            labels: false,
-            frozen_order: false,
-        },
-    }
-}
-
-/// Copies the datasets a request names into a map that solver threads can share.
-pub fn preload(
-    inputs: &dyn Inputs,
-    ids: &[(String, String)],
-) -> Result<HashMap<String, InputArray>, OpError> {
-    let mut map = HashMap::new();
-    for (field, id) in ids {
-        map.insert(id.clone(), fetch(inputs, field, id)?);
-    }
-    Ok(map)
+    Cost(super::spec::cost::ResolvedCost),
+    Tensor(super::spec::tensor::ResolvedTensor),
 }
 
 /// Renames `sources[k]...` in an inner error to the field of the request that gave source `k`.

@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_inputs::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
+use super::spec::grid::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::skeleton::{self, SkeletonError, SkeletonOptions};

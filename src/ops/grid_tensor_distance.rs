@@ -2,7 +2,7 @@
 //! labels, and minimal paths) of a tensor metric on a 2D or 3D grid.
 //!
 //! The same solve as `grid.distance` with a `metric` (both go through
-//! [`super::tensor_spec::resolve_tensor`] and [`super::tensor_spec::solve_tensor`]),
+//! [`super::spec::tensor::resolve_tensor`] and [`super::spec::tensor::solve_tensor`]),
 //! kept as its own endpoint with the stencil statistics and start-to-source
 //! paths; the paths are the shared descent of [`crate::numerics::paths`]
 //! with the Riemannian direction ([`crate::numerics::anisotropic::descent`]).
@@ -13,13 +13,18 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::grid_distance::{stop_name, OutputSpec, SourceSpec, StopSpec};
-use super::tensor_spec::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
+use super::spec::scheme::{stop_name, OutputSpec, SourceSpec, StopSpec};
+use super::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::anisotropic::descent::minimal_path;
 use crate::numerics::paths::DescentOptions;
 use crate::numerics::{Control, Source};
+use crate::ops::spec::cost::CostSpec;
+use crate::ops::spec::defaults::default_order;
+use crate::ops::spec::defaults::default_step;
+use crate::ops::spec::defaults::default_true;
+use crate::ops::spec::distance::GridDistanceRequest;
 
 /// Request of `grid.tensor_distance` (`POST /v1/grid/tensor-distance`, job
 /// operation `grid.tensor_distance`).
@@ -67,18 +72,6 @@ pub struct GridTensorDistanceRequest {
     pub path_step: f64,
 }
 
-fn default_order() -> u8 {
-    2
-}
-
-fn default_true() -> bool {
-    true
-}
-
-fn default_step() -> f64 {
-    0.5
-}
-
 /// Statistics of an anisotropic solve.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct TensorSolveStats {
@@ -112,8 +105,8 @@ pub struct TensorPath {
 impl GridTensorDistanceRequest {
     fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
         self.tensor.validate("tensor", limits)?;
-        let probe = super::grid_distance::GridDistanceRequest {
-            cost: Some(super::grid_distance::CostSpec {
+        let probe = GridDistanceRequest {
+            cost: Some(CostSpec {
                 dataset: None,
                 constant: Some(1.0),
                 shape: Some(vec![1, 1]),

@@ -6,7 +6,7 @@ use ndarray::{ArrayD, IxDyn};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::tensor_spec::{per_cell, TensorSpec};
+use super::spec::tensor::{per_cell, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::{Control, Grid};

@@ -6,7 +6,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::mesh_common::{
+use super::spec::mesh::{
     check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};

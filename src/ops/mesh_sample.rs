@@ -6,8 +6,9 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::mesh_common::vertex_output;
-use super::mesh_common::{get_mesh, heat_solver, solve_error, HeatSpec, MeshMethodSpec, MeshStats};
+use super::spec::errors::mesh_solve_error;
+use super::spec::mesh::vertex_output;
+use super::spec::mesh::{get_mesh, heat_solver, HeatSpec, MeshMethodSpec, MeshStats};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
 use crate::numerics::mesh::MeshMethod;
@@ -110,7 +111,7 @@ impl Operation for MeshSampleRequest {
             heat.as_deref(),
             control,
         )
-        .map_err(solve_error)?;
+        .map_err(mesh_solve_error)?;
         let stats = MeshStats::of(&s.field, started.elapsed().as_secs_f64());
         let document = serde_json::json!({
             "method": self.method,

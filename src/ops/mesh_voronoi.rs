@@ -4,9 +4,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::mesh_common::get_mesh;
-use super::mesh_common::vertex_output;
-use super::mesh_distance::{compute, MeshDistanceRequest};
+use super::spec::mesh::get_mesh;
+use super::spec::mesh::vertex_output;
+use super::spec::mesh::{compute, MeshDistanceRequest};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::Control;
 

@@ -17,7 +17,6 @@
 
 pub mod grid_distance;
 pub mod grid_edt;
-pub mod grid_inputs;
 pub mod grid_metric;
 pub mod grid_offset;
 pub mod grid_paths;
@@ -26,14 +25,13 @@ pub mod grid_segment;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
-pub mod mesh_common;
 pub mod mesh_distance;
 pub mod mesh_paths;
 pub mod mesh_sample;
 pub mod mesh_voronoi;
 pub mod parse;
 pub mod registry;
-pub mod tensor_spec;
+pub mod spec;
 
 use std::sync::Arc;
 
@@ -186,7 +184,7 @@ pub struct OutputMesh {
     /// Key of its reference in the answer (`result`).
     pub name: String,
     /// The mesh.
-    pub mesh: Arc<mesh_common::MeshInput>,
+    pub mesh: Arc<spec::mesh::MeshInput>,
     /// `(property name, array name)`: which of the output's arrays become
     /// which vertex property (`("label", "labels")`).
     pub vertex_properties: Vec<(&'static str, &'static str)>,
@@ -218,7 +216,7 @@ pub trait Inputs {
     fn get(&self, id: &str) -> Option<InputArray>;
 
     /// The mesh dataset with this id, if it exists and is a mesh. Default: none.
-    fn mesh(&self, _id: &str) -> Option<Arc<mesh_common::MeshInput>> {
+    fn mesh(&self, _id: &str) -> Option<Arc<spec::mesh::MeshInput>> {
         None
     }
 

@@ -9,14 +9,16 @@ use utoipa::ToSchema;
 
 use ndarray::ArrayD;
 
-use super::{Inputs, OpError, OpLimits, OpOutput, OutputArray, OutputMesh};
+use super::errors::mesh_solve_error;
 use crate::io::mesh::MeshReport;
 use crate::io::ArrayData;
 use crate::numerics::mesh::{
     mesh_distance, HeatOptions, HeatSolver, MeshDistance, MeshDistanceOptions, MeshMethod,
-    MeshSolveError, SurfacePoint, Topology, TriMesh,
+    SurfacePoint, Topology, TriMesh,
 };
 use crate::numerics::Control;
+use crate::ops::{Inputs, OpError, OpLimits, OpOutput, OutputArray, OutputMesh};
+use std::time::Instant;
 
 /// A decoded mesh dataset, as operations receive it.
 #[derive(Debug)]
@@ -171,22 +173,6 @@ pub(crate) fn check_points(
     Ok(())
 }
 
-/// Maps a core error to an operation error.
-pub(crate) fn solve_error(e: MeshSolveError) -> OpError {
-    match e {
-        MeshSolveError::Cancelled => OpError::Cancelled,
-        MeshSolveError::NoSources => OpError::invalid("sources", e.to_string()),
-        MeshSolveError::InvalidSource { index, reason } => {
-            OpError::invalid(format!("sources[{index}]"), reason)
-        }
-        MeshSolveError::InvalidOption { option, reason } => {
-            let field = if option == "m" { "heat.m" } else { option };
-            OpError::invalid(field, reason)
-        }
-        MeshSolveError::Numerical(reason) => OpError::invalid("mesh", reason),
-    }
-}
-
 /// What the heat method reports.
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct HeatInfo {
@@ -232,7 +218,7 @@ pub(crate) fn run_distance(
             Some(&solver),
             control,
         )
-        .map_err(solve_error)?;
+        .map_err(mesh_solve_error)?;
         let info = HeatInfo {
             t: solver.t(),
             m: heat.m,
@@ -242,7 +228,7 @@ pub(crate) fn run_distance(
         return Ok((d, Some(info)));
     }
     let d = mesh_distance(&input.mesh, &input.topology, sources, &opts, None, control)
-        .map_err(solve_error)?;
+        .map_err(mesh_solve_error)?;
     Ok((d, None))
 }
 
@@ -268,7 +254,7 @@ pub(crate) fn heat_solver(
     };
     let (solver, cached) = inputs
         .heat_solver(mesh_id, heat.m, &mut build)
-        .map_err(solve_error)?;
+        .map_err(mesh_solve_error)?;
     let secs = if cached {
         0.0
     } else {
@@ -364,4 +350,71 @@ pub(crate) fn vertex_output(
         vertex_properties: vec![("distance", "distance"), ("label", "labels")],
     });
     out
+}
+
+/// Request of `mesh.distance` (`POST /v1/mesh/distance`, job operation
+/// `mesh.distance`, `geodex mesh-distance`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "mesh": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44",
+    "sources": [{"vertex": 0}, {"face": 12, "bary": [0.2, 0.3, 0.5]}],
+    "method": "heat"
+}))]
+pub struct MeshDistanceRequest {
+    /// Id of the mesh dataset.
+    pub mesh: String,
+    /// The sources; a vertex's label is the index in this list of its nearest source.
+    #[schema(min_items = 1)]
+    pub sources: Vec<MeshPointSpec>,
+    /// The method. Default: `fast_marching`.
+    #[serde(default)]
+    pub method: MeshMethodSpec,
+    /// Vertices farther than this get no distance (`+inf`, label -1). Default: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0.0)]
+    pub max_distance: Option<f64>,
+    /// Id of an array dataset with one weight `W > 0` per vertex (cost per
+    /// unit length; `fast_marching` and `dijkstra`). Default: 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<String>,
+    /// Heat method options.
+    #[serde(default)]
+    pub heat: HeatSpec,
+}
+
+/// The shared computation of `mesh.distance` and `mesh.voronoi`.
+pub(crate) fn compute(
+    req: &MeshDistanceRequest,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<(MeshDistance, serde_json::Value), OpError> {
+    let points = validate_common(&req.sources, req.max_distance, &req.heat, limits)?;
+    let input = get_mesh(inputs, "mesh", &req.mesh)?;
+    check_points(&input.mesh, &points, "sources")?;
+    let weights = match &req.weights {
+        Some(id) => Some(read_weights(inputs, id, input.mesh.num_vertices())?),
+        None => None,
+    };
+    let started = Instant::now();
+    let (d, heat) = run_distance(
+        inputs,
+        &req.mesh,
+        &input,
+        &points,
+        req.method.into(),
+        req.max_distance.unwrap_or(f64::INFINITY),
+        weights.as_deref(),
+        &req.heat,
+        control,
+    )?;
+    let stats = MeshStats::of(&d, started.elapsed().as_secs_f64());
+    let doc = serde_json::json!({
+        "method": req.method,
+        "stats": stats,
+        "heat": heat,
+        "mesh_report": input.report,
+    });
+    Ok((d, doc))
 }

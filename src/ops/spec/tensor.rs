@@ -8,9 +8,8 @@ use utoipa::ToSchema;
 
 use std::time::Instant;
 
-use super::grid_distance::eikonal_error;
-use super::grid_inputs::{check_shape, fetch};
-use super::{Inputs, OpError, OpLimits};
+use super::errors::eikonal_error;
+use super::grid::{check_shape, fetch};
 use crate::numerics::anisotropic::height_map::height_map_metric;
 use crate::numerics::anisotropic::structure_tensor::edge_metric;
 use crate::numerics::anisotropic::{
@@ -18,6 +17,7 @@ use crate::numerics::anisotropic::{
     TensorOutput, TensorProblem, TensorSolveError,
 };
 use crate::numerics::{Control, EikonalError, Grid, GridError, Order, Source, StopRules};
+use crate::ops::{Inputs, OpError, OpLimits};
 
 /// The metric tensor field `M(x)` (symmetric positive definite; a
 /// displacement `v` costs `sqrt(vᵀ M v)`). Components are in array index

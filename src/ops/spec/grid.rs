@@ -3,8 +3,9 @@
 //! dataset, check its shape, resolve the spacing, build the grid, and turn
 //! core errors into [`OpError`]s that name the request field.
 
-use super::{InputArray, Inputs, OpError, OpLimits};
 use crate::numerics::{Grid, GridError};
+use crate::ops::{InputArray, Inputs, OpError, OpLimits};
+use std::collections::HashMap;
 
 /// The dataset `id` named by `field`.
 pub fn fetch(inputs: &dyn Inputs, field: &str, id: &str) -> Result<InputArray, OpError> {
@@ -134,4 +135,16 @@ pub fn check_non_negative(v: f64, field: &str) -> Result<(), OpError> {
 pub fn shaped<T>(grid: &Grid, v: Vec<T>) -> Result<ndarray::ArrayD<T>, OpError> {
     ndarray::ArrayD::from_shape_vec(grid.shape().to_vec(), v)
         .map_err(|e| OpError::invalid("shape", e.to_string()))
+}
+
+/// Copies the datasets a request names into a map that solver threads can share.
+pub fn preload(
+    inputs: &dyn Inputs,
+    ids: &[(String, String)],
+) -> Result<HashMap<String, InputArray>, OpError> {
+    let mut map = HashMap::new();
+    for (field, id) in ids {
+        map.insert(id.clone(), fetch(inputs, field, id)?);
+    }
+    Ok(map)
 }

@@ -1,0 +1,374 @@
+//! The distance section shared by every operation that solves the eikonal
+//! equation on a grid: [`GridDistanceRequest`] (the request of
+//! `grid.distance`, also built by `grid.segment` and `grid.offset` for their
+//! inner solves), its validation and [`execute`], isotropic or tensor.
+//!
+//! Coordinates are in array index order (axis 0 first) and in index units;
+//! physical lengths are index offsets times the per-axis `spacing`.
+
+use std::time::Instant;
+
+use ndarray::ArrayD;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::cost::{resolve_cost, CostSpec};
+use super::defaults::{default_order, default_true};
+use super::errors::eikonal_error;
+use super::scheme::{
+    check_metric_choice, metric_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec,
+    SourceSpec, StopSpec,
+};
+use super::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
+use crate::numerics::eikonal::{Connectivity, EikonalOptions, EikonalProblem, Method, Order};
+use crate::numerics::{self, Control};
+use crate::ops::spec::grid::fetch;
+use crate::ops::{Inputs, OpError, OpLimits};
+
+/// Request of `grid.distance` (`POST /v1/grid/distance`, job operation
+/// `grid.distance`, and `geodex distance` on the command line).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "cost": {"constant": 1.0, "shape": [256, 256]},
+    "sources": [{"point": [128.0, 128.0]}],
+    "method": "fast_marching",
+    "order": 2
+}))]
+pub struct GridDistanceRequest {
+    /// The isotropic metric: a cost (or speed) dataset, or a constant over a
+    /// shape. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field `M`, `kind`: `components`,
+    /// `constant`, `eigen`, `energy_anisotropy`, `structure_tensor`,
+    /// `height_map`) instead of `cost`: solved by the anisotropic fast
+    /// marching (adaptive stencils), so `method` must be `fast_marching`
+    /// and `connectivity` is not used. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
+    /// Physical size of a cell along each axis (axis 0 first). Default: the
+    /// spacing stored with the cost dataset (NIfTI voxel size), else 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub spacing: Option<Vec<f64>>,
+    /// Id of a dataset of the same shape whose non-zero cells are obstacles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacles: Option<String>,
+    /// The sources. The Voronoi label of a cell is the index of the source
+    /// that reaches it first, in this list.
+    #[schema(min_items = 1)]
+    pub sources: Vec<SourceSpec>,
+    /// The solver. Default: `fast_marching`.
+    #[serde(default)]
+    pub method: MethodSpec,
+    /// Order of the finite-difference scheme, 1 or 2. Default: 2.
+    #[serde(default = "default_order")]
+    #[schema(minimum = 1, maximum = 2)]
+    pub order: u8,
+    /// Source factoring around point sources (fast marching). Default: true.
+    #[serde(default = "default_true")]
+    pub factoring: bool,
+    /// Graph neighbourhood of `dijkstra`. Default: `diagonal`.
+    #[serde(default)]
+    pub connectivity: ConnectivitySpec,
+    /// Early stopping rules.
+    #[serde(default)]
+    pub stop: StopSpec,
+    /// Which arrays to return besides the distance.
+    #[serde(default)]
+    pub outputs: OutputSpec,
+}
+
+/// What a solve reports besides its arrays.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SolveStats {
+    /// Cells in the grid.
+    pub cells: u64,
+    /// Cells with a final value.
+    pub frozen: u64,
+    /// How the solve ended: `completed`, `targets_reached`, `max_distance`, `max_frozen` or `sweep_limit`.
+    pub stop: String,
+    /// Single sweeps done (fast sweeping only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sweeps: Option<u64>,
+    /// Wall time of the solve alone, in seconds.
+    pub solve_seconds: f64,
+    /// With `metric`: the largest anisotropy ratio `sqrt(λmax/λmin)` of the field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_anisotropy: Option<f64>,
+    /// With `metric`: the widest stencil offset used, in cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stencil_width: Option<u64>,
+}
+
+/// The arrays and statistics of a solve.
+#[derive(Debug, Clone)]
+pub struct GridDistanceResult {
+    /// The distance `U` (f64, `+inf` where not reached).
+    pub distance: ArrayD<f64>,
+    /// Voronoi labels, when asked for.
+    pub labels: Option<ArrayD<i32>>,
+    /// Freeze ranks, when asked for.
+    pub frozen_order: Option<ArrayD<i64>>,
+    /// The spacing that was used.
+    pub spacing: Vec<f64>,
+    /// Statistics.
+    pub stats: SolveStats,
+}
+
+impl GridDistanceRequest {
+    /// The dataset ids this request reads, with the field that names each.
+    pub fn dataset_ids(&self) -> Vec<(String, String)> {
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
+        if let Some(id) = &self.obstacles {
+            ids.push(("obstacles".into(), id.clone()));
+        }
+        ids
+    }
+
+    /// Checks everything that does not need the input arrays, so that a
+    /// request can be refused before it is queued.
+    pub fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        check_metric_choice(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            self.method,
+            self.connectivity,
+            limits,
+        )?;
+        if self.sources.is_empty() {
+            return Err(OpError::invalid(
+                "sources",
+                "at least one source is required",
+            ));
+        }
+        if self.sources.len() > limits.max_sources {
+            return Err(OpError::TooLarge {
+                field: "sources".into(),
+                reason: format!(
+                    "{} sources, more than the limit of {}",
+                    self.sources.len(),
+                    limits.max_sources
+                ),
+            });
+        }
+        for (i, s) in self.sources.iter().enumerate() {
+            match (&s.point, &s.cells) {
+                (Some(p), None) => {
+                    if s.values.is_some() {
+                        return Err(OpError::invalid(
+                            format!("sources[{i}].values"),
+                            "values go with `cells`, not with `point`",
+                        ));
+                    }
+                    if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+                        return Err(OpError::invalid(
+                            format!("sources[{i}].point[{k}]"),
+                            "coordinates must be finite",
+                        ));
+                    }
+                }
+                (None, Some(_)) => {}
+                _ => {
+                    return Err(OpError::invalid(
+                        format!("sources[{i}]"),
+                        "give exactly one of `point` or `cells`",
+                    ))
+                }
+            }
+        }
+        if !(1..=2).contains(&self.order) {
+            return Err(OpError::invalid(
+                "order",
+                format!("{} must be 1 or 2", self.order),
+            ));
+        }
+        if let Some(d) = self.stop.max_distance {
+            if d.is_nan() || d < 0.0 {
+                return Err(OpError::invalid(
+                    "stop.max_distance",
+                    format!("{d} must be >= 0"),
+                ));
+            }
+        }
+        if let Some(spacing) = &self.spacing {
+            if let Some(k) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
+                return Err(OpError::invalid(
+                    format!("spacing[{k}]"),
+                    format!("{} must be finite and > 0", spacing[k]),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The core options this request asks for.
+    pub fn options(&self) -> EikonalOptions {
+        let mut o = EikonalOptions::DEFAULT
+            .with_method(match self.method {
+                MethodSpec::FastMarching => Method::FastMarching,
+                MethodSpec::FastSweeping => Method::FastSweeping,
+                MethodSpec::Dijkstra => Method::Dijkstra,
+            })
+            .with_order(if self.order == 1 {
+                Order::First
+            } else {
+                Order::Second
+            })
+            .with_factoring(self.factoring)
+            .with_connectivity(match self.connectivity {
+                ConnectivitySpec::Axial => Connectivity::Axial,
+                ConnectivitySpec::Diagonal => Connectivity::Diagonal,
+                ConnectivitySpec::Extended => Connectivity::Extended,
+            })
+            .with_stop(self.stop.rules());
+        o.record_order = self.outputs.frozen_order;
+        o
+    }
+}
+
+/// Runs `grid.distance`: validates, resolves the datasets through `inputs`,
+/// calls the core and packages the result.
+pub fn execute(
+    req: &GridDistanceRequest,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<GridDistanceResult, OpError> {
+    req.validate(limits)?;
+    let cost = match (&req.cost, &req.metric) {
+        (Some(cost), _) => cost,
+        (None, Some(metric)) => return execute_tensor(req, metric, inputs, limits, control),
+        (None, None) => return Err(OpError::invalid("cost", "missing")),
+    };
+    let resolved = resolve_cost(
+        cost,
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+        inputs,
+        limits,
+        control,
+    )?;
+    let cost = resolved.isotropic()?;
+    let spacing = resolved.spacing.clone();
+    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
+    let problem = EikonalProblem {
+        grid: resolved.grid.clone(),
+        cost,
+        sources,
+    };
+    let started = Instant::now();
+    let out = numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?;
+    let solve_seconds = started.elapsed().as_secs_f64();
+    Ok(GridDistanceResult {
+        stats: SolveStats {
+            cells: problem.grid.len() as u64,
+            frozen: out.frozen as u64,
+            stop: stop_name(out.stop).into(),
+            sweeps: out.sweeps.map(|s| s as u64),
+            solve_seconds,
+            max_anisotropy: None,
+            stencil_width: None,
+        },
+        labels: req.outputs.labels.then_some(out.labels),
+        frozen_order: out.frozen_order,
+        distance: out.distance,
+        spacing,
+    })
+}
+
+/// `grid.distance` with a tensor `metric`: the anisotropic solve of
+/// [`solve_tensor`] on the field of [`resolve_tensor`].
+fn execute_tensor(
+    req: &GridDistanceRequest,
+    metric: &TensorSpec,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+) -> Result<GridDistanceResult, OpError> {
+    let resolved = resolve_tensor(
+        metric,
+        "metric",
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+        inputs,
+        limits,
+    )?;
+    let spec = TensorSolveSpec {
+        order: req.order,
+        factoring: req.factoring,
+        stop: req.stop.rules(),
+        record_order: req.outputs.frozen_order,
+    };
+    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
+    let (problem, spacing) = resolved.into_problem(sources);
+    let solved = solve_tensor(&problem, &spec, "metric", control)?;
+    let out = solved.out;
+    Ok(GridDistanceResult {
+        stats: SolveStats {
+            cells: problem.grid.len() as u64,
+            frozen: out.output.frozen as u64,
+            stop: stop_name(out.output.stop).into(),
+            sweeps: None,
+            solve_seconds: solved.seconds,
+            max_anisotropy: Some(out.stencil.max_anisotropy),
+            stencil_width: Some(out.stencil.max_offset as u64),
+        },
+        labels: req.outputs.labels.then_some(out.output.labels),
+        frozen_order: out.output.frozen_order,
+        distance: out.output.distance,
+        spacing,
+    })
+}
+
+/// The shape of the grid a cost spec describes.
+pub fn cost_shape(
+    cost: &CostSpec,
+    inputs: &dyn Inputs,
+    field: &str,
+) -> Result<Vec<usize>, OpError> {
+    match (&cost.dataset, &cost.shape) {
+        (Some(id), _) => Ok(fetch(inputs, &format!("{field}.dataset"), id)?
+            .array
+            .shape()
+            .to_vec()),
+        (None, Some(shape)) => Ok(shape.clone()),
+        (None, None) => Err(OpError::invalid(
+            field,
+            "give either `dataset`, or `constant` with `shape`",
+        )),
+    }
+}
+
+/// A `grid.distance` request from cell or point sources on the given metric.
+pub fn distance_request(
+    cost: &CostSpec,
+    spacing: &Option<Vec<f64>>,
+    obstacles: &Option<String>,
+    sources: Vec<SourceSpec>,
+    order: u8,
+    max_distance: Option<f64>,
+) -> GridDistanceRequest {
+    GridDistanceRequest {
+        cost: Some(cost.clone()),
+        metric: None,
+        spacing: spacing.clone(),
+        obstacles: obstacles.clone(),
+        sources,
+        method: MethodSpec::FastMarching,
+        order,
+        factoring: true,
+        connectivity: ConnectivitySpec::Diagonal,
+        stop: StopSpec {
+            targets: Vec::new(),
+            max_distance,
+            max_frozen: None,
+        },
+        outputs: OutputSpec {
+            labels: false,
+            frozen_order: false,
+        },
+    }
+}
