@@ -234,7 +234,8 @@ fn medial_axis_with(
     let mut ring_len = Vec::new();
     if two_d {
         let labels: Vec<i64> = pmask.iter().map(|&m| i64::from(m)).collect();
-        let b = contours::trace(&labels, [ps[1], ps[2]], Some(0));
+        let b = contours::trace(&labels, [ps[1], ps[2]], Some(0), control)
+            .map_err(|contours::ContourError::Cancelled| EdtError::Cancelled)?;
         arc_s = vec![f64::NAN; pgrid.len()];
         arc_ring = vec![u32::MAX; pgrid.len()];
         let mid = |e: &CrackEdge| -> [f64; 2] {

@@ -683,6 +683,7 @@ fn execute_tensor(
         req.obstacles.as_deref(),
         inputs,
         limits,
+        control,
     )?;
     let spec = TensorSolveSpec {
         order: req.order,
