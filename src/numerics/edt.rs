@@ -102,7 +102,20 @@ pub struct EdtOutput {
 }
 
 /// Binary transform: distance of every cell to the nearest cell where `mask`
-/// is true (0 on the mask).
+/// is true (0 on the mask): `D(x) = min { |h ⊙ (x − y)| : mask(y) }`, and
+/// with [`EdtOptions::features`] the cell `F(x)` that attains it.
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::edt::{edt, EdtOptions};
+/// use geodex::numerics::{Control, Grid};
+/// let grid = Grid::new(&[3, 4], &[2.0, 1.0])?; // cells 2 high, 1 wide
+/// let mask: Vec<bool> = (0..12).map(|c| c == 0).collect(); // the cell (0, 0)
+/// let out = edt(&grid, &mask, &EdtOptions::default().with_features(true), &Control::new())?;
+/// assert_eq!(out.distance[2 * 4 + 3], 5.0); // (2, 3): √((2·2)² + (3·1)²)
+/// assert_eq!(out.features.as_deref().map(|f| f[2 * 4 + 3]), Some(0));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn edt(
     grid: &Grid,
     mask: &[bool],
