@@ -13,6 +13,19 @@
 //! * [`http`]: the axum router, problem+json errors, the OpenAPI contract.
 //! * [`app`], [`config`], [`telemetry`]: start-up, settings and logs.
 //! * [`cli`]: the `geodex` command (serve, distance, bench).
+//!
+//! No `unsafe` outside `numerics/prefetch.rs`: the crate denies the
+//! `unsafe_code` lint here (and `Cargo.toml`'s `[lints]` for every target),
+//! and the one prefetch hint allows it on its own block. `deny` rather than
+//! `forbid`: a `forbid` cannot be lifted by an inner `#[allow]`, so it would
+//! refuse that one exception too. `tests/layering.rs` checks that no other
+//! file holds `unsafe` or allows the lint.
+
+#![deny(unsafe_code)]
+// No `unwrap()` outside tests: a panic must not reach a client. Set here and
+// not in `Cargo.toml`'s `[lints]`, which would also apply to the integration
+// tests and benches; `clippy.toml` lets the unit tests unwrap.
+#![warn(clippy::unwrap_used)]
 
 pub mod app;
 pub mod cli;

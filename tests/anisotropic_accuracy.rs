@@ -144,7 +144,7 @@ fn height_maps_tilted_plane_and_hemisphere() {
     let heights: Vec<f64> = (0..n * n)
         .map(|k| a * (k / n) as f64 * hs + b * (k % n) as f64 * hs)
         .collect();
-    let field = height_map_metric(&grid, &heights, &[1.0], 0.0).unwrap();
+    let field = height_map_metric(&grid, &heights, &[1.0], 0.0, &Control::new()).unwrap();
     let m = [1.0 + a * a, a * b, 1.0 + b * b];
     let constant = TensorField::constant(&grid, &m).unwrap();
     let src = vec![Source::Point(vec![20.3, 40.6])];
@@ -192,7 +192,7 @@ fn height_maps_tilted_plane_and_hemisphere() {
             x * x + y * y > 0.95 * 0.95
         })
         .collect();
-    let metric = height_map_metric(&grid, &heights, &[1.0], 0.0)
+    let metric = height_map_metric(&grid, &heights, &[1.0], 0.0, &Control::new())
         .unwrap()
         .with_walls(&grid, walls)
         .unwrap();

@@ -12,6 +12,8 @@
 //! another label (or the outside of the grid), oriented with the cell on the
 //! left; every cell side is visited once, so the cost is `O(N)`.
 
+use super::Control;
+
 /// One directed boundary edge: from corner `from` to corner `to` (corner
 /// `(ci, cj)` has linear index `ci * (n1 + 1) + cj` and sits at the point
 /// `(ci - 1/2, cj - 1/2)`), with the region's cell on its left.
@@ -27,6 +29,14 @@ pub struct CrackEdge {
     pub outside: Option<u32>,
     /// Direction: 0 = +axis0, 1 = +axis1, 2 = -axis0, 3 = -axis1.
     pub dir: u8,
+}
+
+/// Why the boundaries were not traced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ContourError {
+    /// The caller raised the cancel flag.
+    #[error("cancelled")]
+    Cancelled,
 }
 
 /// A closed ring of boundary edges of one region.
@@ -66,8 +76,21 @@ pub struct Polygon {
 
 /// The boundaries of every region of `labels` (shape `(n0, n1)`, C order).
 /// Cells whose label is `skip` (for instance a background) get no ring.
-pub fn trace(labels: &[i64], shape: [usize; 2], skip: Option<i64>) -> Boundaries {
+/// `control` is polled once per row of cells and once per ring.
+pub fn trace(
+    labels: &[i64],
+    shape: [usize; 2],
+    skip: Option<i64>,
+    control: &Control<'_>,
+) -> Result<Boundaries, ContourError> {
     let [n0, n1] = shape;
+    let poll = || {
+        if control.is_cancelled() {
+            Err(ContourError::Cancelled)
+        } else {
+            Ok(())
+        }
+    };
     let nc1 = n1 + 1;
     let corner = |ci: usize, cj: usize| (ci * nc1 + cj) as u32;
     // Components (4-connectivity), by flood fill.
@@ -75,6 +98,9 @@ pub fn trace(labels: &[i64], shape: [usize; 2], skip: Option<i64>) -> Boundaries
     let mut components = Vec::new();
     let mut stack = Vec::new();
     for start in 0..labels.len() {
+        if start % n1.max(1) == 0 {
+            poll()?;
+        }
         if comp[start] != u32::MAX || Some(labels[start]) == skip {
             continue;
         }
@@ -110,6 +136,9 @@ pub fn trace(labels: &[i64], shape: [usize; 2], skip: Option<i64>) -> Boundaries
     // Directed edges, region on the left, and the outgoing edges of each corner.
     let mut edges: Vec<CrackEdge> = Vec::new();
     for c in 0..labels.len() {
+        if c % n1.max(1) == 0 {
+            poll()?;
+        }
         if Some(labels[c]) == skip {
             continue;
         }
@@ -153,6 +182,7 @@ pub fn trace(labels: &[i64], shape: [usize; 2], skip: Option<i64>) -> Boundaries
         if used[start] {
             continue;
         }
+        poll()?;
         let label = labels[edges[start].inside as usize];
         let mut ring = Vec::new();
         let mut e = start;
@@ -202,11 +232,11 @@ pub fn trace(labels: &[i64], shape: [usize; 2], skip: Option<i64>) -> Boundaries
             twice_area,
         });
     }
-    Boundaries {
+    Ok(Boundaries {
         shape,
         rings,
         components,
-    }
+    })
 }
 
 impl Boundaries {
@@ -276,7 +306,7 @@ mod tests {
         }
         l[5 * 7 + 5] = 2;
         l[6 * 7 + 6] = 2;
-        let b = trace(&l, [7, 7], Some(0));
+        let b = trace(&l, [7, 7], Some(0), &Control::new()).unwrap();
         let polys = b.polygons();
         let ones: Vec<_> = polys.iter().filter(|p| p.label == 1).collect();
         assert_eq!(ones.len(), 1);
@@ -290,5 +320,15 @@ mod tests {
         let twos: Vec<_> = polys.iter().filter(|p| p.label == 2).collect();
         assert_eq!(twos.len(), 2);
         assert!(twos.iter().all(|p| ring_area(&p.rings[0]) == 1.0));
+    }
+
+    #[test]
+    fn a_raised_flag_stops_the_tracer() {
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let l = vec![1i64; 16];
+        assert_eq!(
+            trace(&l, [4, 4], None, &Control::new().with_cancel(&flag)),
+            Err(ContourError::Cancelled)
+        );
     }
 }

@@ -32,8 +32,12 @@
 //! rounding (the tests assert 1e-12 on random anisotropic masks).
 //!
 //! Cost: `O(N)` time per axis, `N` f64 (and `N` u32 for features) of memory.
-//! Each pass is parallel over lines with rayon: in the caller's pool, or in a
-//! pool of [`EdtOptions::threads`] threads.
+//! Each pass is parallel over lines with rayon, in the caller's pool (the
+//! one the caller is running on, the global one outside any pool): the
+//! transforms start no threads of their own, so a service that runs every
+//! solve on one pool keeps its thread budget. The result does not depend on
+//! the number of threads (every line is computed by the same sequential
+//! code).
 //!
 //! # Examples
 //! ```
@@ -67,14 +71,6 @@ pub enum EdtError {
         /// Cells of the grid.
         expected: usize,
     },
-    /// The thread pool could not be built.
-    #[error("cannot start {threads} threads: {reason}")]
-    Threads {
-        /// Threads asked for.
-        threads: usize,
-        /// Why rayon refused.
-        reason: String,
-    },
     /// The caller raised the cancel flag.
     #[error("cancelled")]
     Cancelled,
@@ -85,21 +81,12 @@ pub enum EdtError {
 pub struct EdtOptions {
     /// Also compute the feature transform. Default: false.
     pub features: bool,
-    /// Run in a new pool of this many threads; `None` (the default) runs in
-    /// the caller's rayon pool (the global one outside any pool).
-    pub threads: Option<usize>,
 }
 
 impl EdtOptions {
     /// Defaults with the feature transform on or off.
     pub fn with_features(mut self, features: bool) -> Self {
         self.features = features;
-        self
-    }
-
-    /// Defaults with a thread count.
-    pub fn with_threads(mut self, threads: Option<usize>) -> Self {
-        self.threads = threads;
         self
     }
 }
@@ -115,7 +102,20 @@ pub struct EdtOutput {
 }
 
 /// Binary transform: distance of every cell to the nearest cell where `mask`
-/// is true (0 on the mask).
+/// is true (0 on the mask): `D(x) = min { |h ⊙ (x − y)| : mask(y) }`, and
+/// with [`EdtOptions::features`] the cell `F(x)` that attains it.
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::edt::{edt, EdtOptions};
+/// use geodex::numerics::{Control, Grid};
+/// let grid = Grid::new(&[3, 4], &[2.0, 1.0])?; // cells 2 high, 1 wide
+/// let mask: Vec<bool> = (0..12).map(|c| c == 0).collect(); // the cell (0, 0)
+/// let out = edt(&grid, &mask, &EdtOptions::default().with_features(true), &Control::new())?;
+/// assert_eq!(out.distance[2 * 4 + 3], 5.0); // (2, 3): √((2·2)² + (3·1)²)
+/// assert_eq!(out.features.as_deref().map(|f| f[2 * 4 + 3]), Some(0));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn edt(
     grid: &Grid,
     mask: &[bool],
@@ -123,13 +123,11 @@ pub fn edt(
     control: &Control<'_>,
 ) -> Result<EdtOutput, EdtError> {
     check_len(grid, mask.len())?;
-    in_pool(options.threads, || {
-        let mut sq = squared_binary(grid, mask, options.features, control)?;
-        finish(&mut sq.0, None::<(&[bool], bool)>);
-        Ok(EdtOutput {
-            distance: sq.0,
-            features: sq.1,
-        })
+    let mut sq = squared_binary(grid, mask, options.features, control)?;
+    finish(&mut sq.0, None::<(&[bool], bool)>);
+    Ok(EdtOutput {
+        distance: sq.0,
+        features: sq.1,
     })
 }
 
@@ -142,10 +140,8 @@ pub fn edt_squared(
     control: &Control<'_>,
 ) -> Result<EdtOutput, EdtError> {
     check_len(grid, mask.len())?;
-    in_pool(options.threads, || {
-        let (distance, features) = squared_binary(grid, mask, options.features, control)?;
-        Ok(EdtOutput { distance, features })
-    })
+    let (distance, features) = squared_binary(grid, mask, options.features, control)?;
+    Ok(EdtOutput { distance, features })
 }
 
 /// Signed transform: outside the mask the distance to the nearest mask cell,
@@ -158,13 +154,11 @@ pub fn signed_edt(
     control: &Control<'_>,
 ) -> Result<EdtOutput, EdtError> {
     check_len(grid, mask.len())?;
-    in_pool(options.threads, || {
-        let (mut d, f) = squared_multilabel(grid, mask, options.features, control)?;
-        finish(&mut d, Some((mask, true)));
-        Ok(EdtOutput {
-            distance: d,
-            features: f,
-        })
+    let (mut d, f) = squared_multilabel(grid, mask, options.features, control)?;
+    finish(&mut d, Some((mask, true)));
+    Ok(EdtOutput {
+        distance: d,
+        features: f,
     })
 }
 
@@ -177,13 +171,11 @@ pub fn multilabel_edt<L: Copy + PartialEq + Send + Sync>(
     control: &Control<'_>,
 ) -> Result<EdtOutput, EdtError> {
     check_len(grid, labels.len())?;
-    in_pool(options.threads, || {
-        let (mut d, f) = squared_multilabel(grid, labels, options.features, control)?;
-        finish(&mut d, None::<(&[bool], bool)>);
-        Ok(EdtOutput {
-            distance: d,
-            features: f,
-        })
+    let (mut d, f) = squared_multilabel(grid, labels, options.features, control)?;
+    finish(&mut d, None::<(&[bool], bool)>);
+    Ok(EdtOutput {
+        distance: d,
+        features: f,
     })
 }
 
@@ -195,25 +187,6 @@ fn check_len(grid: &Grid, got: usize) -> Result<(), EdtError> {
         });
     }
     Ok(())
-}
-
-fn in_pool<T: Send>(
-    threads: Option<usize>,
-    f: impl FnOnce() -> Result<T, EdtError> + Send,
-) -> Result<T, EdtError> {
-    match threads {
-        None => f(),
-        Some(n) => {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(n.max(1))
-                .build()
-                .map_err(|e| EdtError::Threads {
-                    threads: n,
-                    reason: e.to_string(),
-                })?;
-            pool.install(f)
-        }
-    }
 }
 
 /// Square roots (and the sign inside `mask` for the signed transform).
@@ -976,20 +949,18 @@ mod tests {
         let grid = Grid::new(&[40, 33, 21], &[1.0, 0.7, 1.3]).unwrap();
         let mask: Vec<bool> = (0..grid.len()).map(|i| (i * 7919) % 97 == 0).collect();
         let c = Control::new();
-        let one = edt(
-            &grid,
-            &mask,
-            &EdtOptions::default().with_threads(Some(1)),
-            &c,
-        )
-        .unwrap();
-        let two = edt(
-            &grid,
-            &mask,
-            &EdtOptions::default().with_threads(Some(2)),
-            &c,
-        )
-        .unwrap();
+        // The transform runs on the caller's pool: the caller picks the
+        // thread count.
+        let in_pool = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| edt(&grid, &mask, &EdtOptions::default(), &c))
+                .unwrap()
+        };
+        let one = in_pool(1);
+        let two = in_pool(2);
         assert_eq!(one, two);
         let sq = edt_squared(&grid, &mask, &EdtOptions::default(), &c).unwrap();
         for (a, b) in sq.distance.iter().zip(&one.distance) {

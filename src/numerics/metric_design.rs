@@ -43,9 +43,10 @@ use super::grid::Grid;
 /// Why a metric could not be designed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DesignError {
-    /// A filter refused its input (length, scale).
+    /// A filter refused its input (length, scale). A cancelled filter is
+    /// [`DesignError::Cancelled`], not this.
     #[error(transparent)]
-    Filter(#[from] FilterError),
+    Filter(FilterError),
     /// A parameter is out of its range; `name` is the parameter's name.
     #[error("{name}: {reason}")]
     Parameter {
@@ -65,6 +66,15 @@ pub enum DesignError {
     /// The caller cancelled the computation.
     #[error("cancelled")]
     Cancelled,
+}
+
+impl From<FilterError> for DesignError {
+    fn from(e: FilterError) -> Self {
+        match e {
+            FilterError::Cancelled => DesignError::Cancelled,
+            other => DesignError::Filter(other),
+        }
+    }
 }
 
 fn param(name: impl Into<String>, reason: impl Into<String>) -> DesignError {
@@ -223,8 +233,8 @@ pub fn design(
     control: &Control<'_>,
 ) -> Result<Vec<f64>, DesignError> {
     match design {
-        MetricDesign::Intensity(d) => intensity(grid, f, d),
-        MetricDesign::Edges(d) => edges(grid, f, d),
+        MetricDesign::Intensity(d) => intensity(grid, f, d, control),
+        MetricDesign::Edges(d) => edges(grid, f, d, control),
         MetricDesign::Vesselness(d) => {
             check_positive("power", d.power)?;
             check_positive("epsilon", d.epsilon)?;
@@ -276,12 +286,17 @@ fn normalised(grid: &Grid, f: &[f64]) -> Result<(Vec<f64>, f64, f64), DesignErro
 ///
 /// With `reference = Value(+inf)` (the default) `c` is the largest value
 /// (1 after normalisation, bright structures); `Value(-inf)` gives 0 (dark).
-pub fn intensity(grid: &Grid, f: &[f64], d: &IntensityDesign) -> Result<Vec<f64>, DesignError> {
+pub fn intensity(
+    grid: &Grid,
+    f: &[f64],
+    d: &IntensityDesign,
+    control: &Control<'_>,
+) -> Result<Vec<f64>, DesignError> {
     check_positive("power", d.power)?;
     check_positive("epsilon", d.epsilon)?;
     check_sigma("sigma", d.sigma)?;
     let (f, lo, span) = normalised(grid, f)?;
-    let f = filters::gaussian_smooth(grid, &f, d.sigma)?;
+    let f = filters::gaussian_smooth(grid, &f, d.sigma, control)?;
     let c = match &d.reference {
         Reference::Value(v) if v.is_nan() => {
             return Err(param("reference.value", "must not be NaN"));
@@ -316,11 +331,16 @@ fn nearest_cell(grid: &Grid, p: &[f64]) -> Result<[usize; 3], String> {
 
 /// The normalised gradient magnitude `g = |∇(G_σ * f)| / max |∇(G_σ * f)|`
 /// (physical units, so anisotropic spacing is honoured), in `[0, 1]`.
-pub fn edge_strength(grid: &Grid, f: &[f64], sigma: f64) -> Result<Vec<f64>, DesignError> {
+pub fn edge_strength(
+    grid: &Grid,
+    f: &[f64],
+    sigma: f64,
+    control: &Control<'_>,
+) -> Result<Vec<f64>, DesignError> {
     check_sigma("sigma", sigma)?;
     let (f, _, _) = normalised(grid, f)?;
-    let s = filters::gaussian_smooth(grid, &f, sigma)?;
-    let g: Vec<f64> = filters::gradient(grid, &s)?
+    let s = filters::gaussian_smooth(grid, &f, sigma, control)?;
+    let g: Vec<f64> = filters::gradient(grid, &s, control)?
         .iter()
         .map(|d| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
         .collect();
@@ -334,10 +354,15 @@ pub fn edge_strength(grid: &Grid, f: &[f64], sigma: f64) -> Result<Vec<f64>, Des
 
 /// The edge metric, see [`EdgeDesign`]: `W = 1 / (ε + g^p)` (follow) or
 /// `W = ε + g^p` (barrier) with `g` from [`edge_strength`].
-pub fn edges(grid: &Grid, f: &[f64], d: &EdgeDesign) -> Result<Vec<f64>, DesignError> {
+pub fn edges(
+    grid: &Grid,
+    f: &[f64],
+    d: &EdgeDesign,
+    control: &Control<'_>,
+) -> Result<Vec<f64>, DesignError> {
     check_positive("power", d.power)?;
     check_positive("epsilon", d.epsilon)?;
-    let g = edge_strength(grid, f, d.sigma)?;
+    let g = edge_strength(grid, f, d.sigma, control)?;
     Ok(g.iter()
         .map(|&g| {
             let t = d.epsilon + g.powf(d.power);
@@ -414,10 +439,10 @@ pub fn vesselness(
         if control.is_cancelled() {
             return Err(DesignError::Cancelled);
         }
-        let smooth = filters::gaussian_smooth(grid, &f, sigma)?;
+        let smooth = filters::gaussian_smooth(grid, &f, sigma, control)?;
         let s2 = sigma * sigma;
         // Eigenvalues sorted by magnitude, of the scale-normalised Hessian.
-        let eig: Vec<[f64; 3]> = filters::hessian(grid, &smooth)?
+        let eig: Vec<[f64; 3]> = filters::hessian(grid, &smooth, control)?
             .par_iter()
             .map(|h| {
                 let mut e = if three_d {
@@ -512,7 +537,7 @@ mod tests {
             epsilon: 0.1,
             sigma: 0.0,
         };
-        let w = intensity(&grid, &f, &d).unwrap();
+        let w = intensity(&grid, &f, &d, &Control::new()).unwrap();
         let want = [0.0625 + 0.1, 0.1, 0.0625 + 0.1, 0.25 + 0.1, 0.5625 + 0.1];
         for (a, b) in w.iter().zip(want) {
             assert!((a - b).abs() < 1e-12, "{w:?}");
@@ -522,16 +547,16 @@ mod tests {
             ..IntensityDesign::default()
         };
         assert!(matches!(
-            intensity(&grid, &f, &bad),
+            intensity(&grid, &f, &bad, &Control::new()),
             Err(DesignError::Parameter { ref name, .. }) if name == "epsilon"
         ));
         let outside = IntensityDesign {
             reference: Reference::Point(vec![0.0, 9.0]),
             ..IntensityDesign::default()
         };
-        assert!(intensity(&grid, &f, &outside).is_err());
+        assert!(intensity(&grid, &f, &outside, &Control::new()).is_err());
         assert!(matches!(
-            intensity(&grid, &[0.0, f64::NAN, 0.0, 0.0, 0.0], &d),
+            intensity(&grid, &[0.0, f64::NAN, 0.0, 0.0, 0.0], &d, &Control::new()),
             Err(DesignError::NonFinite { ref index, .. }) if index == &vec![0, 1]
         ));
     }
@@ -543,7 +568,7 @@ mod tests {
         let f: Vec<f64> = (0..400)
             .map(|i| if i % 20 >= 10 { 1.0 } else { 0.0 })
             .collect();
-        let w = edges(&grid, &f, &EdgeDesign::default()).unwrap();
+        let w = edges(&grid, &f, &EdgeDesign::default(), &Control::new()).unwrap();
         let row = &w[200..220];
         let (argmin, _) = row
             .iter()
@@ -559,7 +584,7 @@ mod tests {
             mode: EdgeMode::Barrier,
             ..EdgeDesign::default()
         };
-        let wb = edges(&grid, &f, &barrier).unwrap();
+        let wb = edges(&grid, &f, &barrier, &Control::new()).unwrap();
         for (a, b) in w.iter().zip(&wb) {
             assert!((a * b - 1.0).abs() < 1e-12);
         }
@@ -638,5 +663,31 @@ mod tests {
         .unwrap();
         let i = grid.linear([10, 8, 10]);
         assert!((w[i] - 1.0 / (0.01 + v[i])).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_raised_flag_stops_every_design() {
+        let grid = Grid::unit(&[8, 8]).unwrap();
+        let f: Vec<f64> = (0..64).map(f64::from).collect();
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let c = Control::new().with_cancel(&flag);
+        let smoothed = IntensityDesign {
+            sigma: 1.0,
+            ..IntensityDesign::default()
+        };
+        assert_eq!(
+            intensity(&grid, &f, &smoothed, &c),
+            Err(DesignError::Cancelled)
+        );
+        assert_eq!(
+            edges(&grid, &f, &EdgeDesign::default(), &c),
+            Err(DesignError::Cancelled)
+        );
+        assert_eq!(
+            edge_strength(&grid, &f, 0.0, &c),
+            Err(DesignError::Cancelled)
+        );
+        let v = MetricDesign::Vesselness(VesselnessDesign::default());
+        assert_eq!(design(&grid, &f, &v, &c), Err(DesignError::Cancelled));
     }
 }

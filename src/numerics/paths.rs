@@ -560,7 +560,23 @@ impl<'a, C: CellCost + ?Sized> DistanceMap<'a, C> {
     }
 
     /// Extracts the minimal path from `end` (caller index coordinates) to the
-    /// nearest source along `U`, with the direction field `dir`.
+    /// nearest source along `U`, with the direction field `dir`: the curve
+    /// `γ' = dir(γ, ∇U(γ))` integrated by RK4 (a discrete steepest-descent
+    /// step where the gradient is undefined or the step would cross a
+    /// wall), until it enters a source cell.
+    ///
+    /// # Examples
+    /// ```
+    /// use geodex::numerics::paths::{DescentOptions, DistanceMap, Isotropic, SourceSet};
+    /// use geodex::numerics::{solve, Control, EikonalOptions, EikonalProblem, Grid, IsotropicCost, Source};
+    /// let (grid, sources) = (Grid::unit(&[32, 32])?, vec![Source::Point(vec![4.0, 4.0])]);
+    /// let problem = EikonalProblem { grid: grid.clone(), cost: IsotropicCost::constant(1.0)?, sources: sources.clone() };
+    /// let u: Vec<f64> = solve(&problem, &EikonalOptions::DEFAULT, &Control::new())?.distance.iter().copied().collect();
+    /// let map = DistanceMap::new(&grid, &u, &problem.cost)?;
+    /// let path = map.descend(&SourceSet::new(&grid, &sources)?, &[28.0, 20.0], &Isotropic, &DescentOptions::default())?;
+    /// assert!((path.euclidean_length - (24f64.powi(2) + 16f64.powi(2)).sqrt()).abs() < 0.05);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     pub fn descend<D: DescentDirection + ?Sized>(
         &self,
         sources: &SourceSet,

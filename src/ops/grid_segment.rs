@@ -182,19 +182,25 @@ type LabelPolygons = (Vec<Vec<Vec<[f64; 2]>>>, usize);
 
 /// A GeoJSON FeatureCollection with one MultiPolygon per label of a 2D label
 /// map (`-1`, unreached, is left out). Positions are `[axis 0, axis 1]` in index units.
-pub fn label_contours(labels: &[i32], shape: [usize; 2]) -> serde_json::Value {
+pub fn label_contours(
+    labels: &[i32],
+    shape: [usize; 2],
+    control: &Control<'_>,
+) -> Result<serde_json::Value, OpError> {
     let l64: Vec<i64> = labels.iter().map(|&v| i64::from(v)).collect();
-    let polys = contours::trace(&l64, shape, Some(-1)).polygons();
+    let polys = contours::trace(&l64, shape, Some(-1), control)
+        .map_err(|contours::ContourError::Cancelled| OpError::Cancelled)?
+        .polygons();
     let vertices: usize = polys
         .iter()
         .map(|p| p.rings.iter().map(Vec::len).sum::<usize>())
         .sum();
     if vertices > MAX_CONTOUR_VERTICES {
-        return serde_json::json!({
+        return Ok(serde_json::json!({
             "type": "FeatureCollection",
             "features": [],
             "truncated": format!("{vertices} vertices, more than {MAX_CONTOUR_VERTICES}; fetch the label map instead"),
-        });
+        }));
     }
     let mut by_label: BTreeMap<i64, LabelPolygons> = BTreeMap::new();
     for p in polys {
@@ -212,7 +218,7 @@ pub fn label_contours(labels: &[i32], shape: [usize; 2]) -> serde_json::Value {
             })
         })
         .collect();
-    serde_json::json!({"type": "FeatureCollection", "features": features})
+    Ok(serde_json::json!({"type": "FeatureCollection", "features": features}))
 }
 
 impl Operation for GridSegmentRequest {
@@ -263,6 +269,7 @@ impl Operation for GridSegmentRequest {
                 self.obstacles.as_deref(),
                 inputs,
                 limits,
+                control,
             )?),
             (None, None) => return Err(OpError::invalid("cost", "missing")),
         };
@@ -400,8 +407,9 @@ impl Operation for GridSegmentRequest {
             let cells = v.labels.iter().filter(|&&l| l == *label).count();
             stats.push(serde_json::json!({"label": label, "cells": cells, "seeds": seeds}));
         }
-        let contours =
-            (self.contours && ndim == 2).then(|| label_contours(&v.labels, [shape[0], shape[1]]));
+        let contours = (self.contours && ndim == 2)
+            .then(|| label_contours(&v.labels, [shape[0], shape[1]], control))
+            .transpose()?;
         let confidence = v.confidence();
         let sp = Some(spacing);
         let mut arrays = vec![OutputArray {

@@ -12,7 +12,7 @@ use utoipa::ToSchema;
 use super::spec::grid::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
-use crate::numerics::skeleton::{self, SkeletonError, SkeletonOptions};
+use crate::numerics::skeleton::{self, SkeletonError, SkeletonGraph, SkeletonOptions};
 use crate::numerics::Control;
 
 /// Request of `grid.skeleton` (`POST /v1/grid/skeleton`, `geodex skeleton`).
@@ -97,8 +97,7 @@ impl Operation for GridSkeletonRequest {
         if let Some(g) = &sk.graph {
             document["stats"]["nodes"] = g.nodes.len().into();
             document["stats"]["branches"] = g.edges.len().into();
-            document["graph"] =
-                serde_json::to_value(g).map_err(|e| OpError::invalid("mask", e.to_string()))?;
+            document["graph"] = graph_json(g);
         }
         let sk_u8: Vec<u8> = sk.mask.iter().map(|&m| u8::from(m)).collect();
         Ok(OpOutput::new(
@@ -116,5 +115,123 @@ impl Operation for GridSkeletonRequest {
             ],
             document,
         ))
+    }
+}
+
+/// The skeleton graph as the API gives it: `{"nodes": [{"id", "point",
+/// "radius", "degree"}], "edges": [{"source", "target", "points", "radius",
+/// "length"}]}`, the fields in this order (the numerical core does not
+/// depend on serde, so the JSON shape is written here).
+fn graph_json(g: &SkeletonGraph) -> serde_json::Value {
+    let nodes: Vec<serde_json::Value> = g
+        .nodes
+        .iter()
+        .map(|n| {
+            serde_json::json!({
+                "id": n.id,
+                "point": n.point,
+                "radius": n.radius,
+                "degree": n.degree,
+            })
+        })
+        .collect();
+    let edges: Vec<serde_json::Value> = g
+        .edges
+        .iter()
+        .map(|e| {
+            serde_json::json!({
+                "source": e.source,
+                "target": e.target,
+                "points": e.points,
+                "radius": e.radius,
+                "length": e.length,
+            })
+        })
+        .collect();
+    serde_json::json!({"nodes": nodes, "edges": edges})
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::skeleton::{SkeletonEdge, SkeletonNode};
+
+    /// The graph types as they were when the numerical core derived
+    /// `Serialize` for them: the document must stay what they gave.
+    #[derive(Serialize)]
+    struct DerivedNode {
+        id: usize,
+        point: [f64; 2],
+        radius: f64,
+        degree: usize,
+    }
+
+    #[derive(Serialize)]
+    struct DerivedEdge {
+        source: usize,
+        target: usize,
+        points: Vec<[f64; 2]>,
+        radius: Vec<f64>,
+        length: f64,
+    }
+
+    #[derive(Serialize)]
+    struct DerivedGraph {
+        nodes: Vec<DerivedNode>,
+        edges: Vec<DerivedEdge>,
+    }
+
+    #[test]
+    fn the_graph_document_is_the_one_the_derived_serialisation_gave() {
+        let g = SkeletonGraph {
+            nodes: vec![
+                SkeletonNode {
+                    id: 0,
+                    point: [1.0, 2.5],
+                    radius: 3.25,
+                    degree: 1,
+                },
+                SkeletonNode {
+                    id: 1,
+                    point: [4.0, 2.5],
+                    radius: 0.1,
+                    degree: 1,
+                },
+            ],
+            edges: vec![SkeletonEdge {
+                source: 0,
+                target: 1,
+                points: vec![[1.0, 2.5], [2.0, 2.5], [4.0, 2.5]],
+                radius: vec![3.25, 2.0, 0.1],
+                length: 3.0,
+            }],
+        };
+        let derived = DerivedGraph {
+            nodes: g
+                .nodes
+                .iter()
+                .map(|n| DerivedNode {
+                    id: n.id,
+                    point: n.point,
+                    radius: n.radius,
+                    degree: n.degree,
+                })
+                .collect(),
+            edges: g
+                .edges
+                .iter()
+                .map(|e| DerivedEdge {
+                    source: e.source,
+                    target: e.target,
+                    points: e.points.clone(),
+                    radius: e.radius.clone(),
+                    length: e.length,
+                })
+                .collect(),
+        };
+        // Through a `Value`, as the document was built: the same text, so
+        // the same names in the same order.
+        let before = serde_json::to_value(&derived).unwrap().to_string();
+        assert_eq!(graph_json(&g).to_string(), before);
     }
 }

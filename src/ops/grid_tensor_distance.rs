@@ -181,6 +181,7 @@ impl Operation for GridTensorDistanceRequest {
             self.obstacles.as_deref(),
             inputs,
             limits,
+            control,
         )?;
         let sources: Vec<Source> = self.sources.iter().map(SourceSpec::to_source).collect();
         let (problem, spacing) = resolved.into_problem(sources);

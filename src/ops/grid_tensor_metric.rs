@@ -64,7 +64,7 @@ impl Operation for GridTensorMetricRequest {
             .unwrap_or_else(|| vec![1.0; shape.len()]);
         let grid =
             Grid::new(&shape, &spacing).map_err(|e| OpError::invalid("spacing", e.to_string()))?;
-        let field = self.tensor.build(&grid, inputs, "tensor")?;
+        let field = self.tensor.build(&grid, inputs, "tensor", control)?;
         if control.is_cancelled() {
             return Err(OpError::Cancelled);
         }

@@ -16,21 +16,24 @@
 //! Its anisotropy ratio is `sqrt(1 + |∇h|²)`. 2D and 3D (a graph of a
 //! volume function in 4D) grids are accepted alike.
 
+use super::structure_tensor::filter_error;
 use super::tensor::{components, TensorError, TensorField};
 use crate::numerics::filters::{gaussian_smooth, gradient};
 use crate::numerics::grid::Grid;
+use crate::numerics::Control;
 
 /// Builds `W² (Id + ∇h∇hᵀ)` from heights `h` (one per cell, C order), a
 /// cost `w` (a constant, or one value per cell) and a smoothing `sigma`
-/// (physical units, 0 for none).
+/// (physical units, 0 for none). `control` is polled by the filters, once
+/// per line.
 ///
 /// # Examples
 /// ```
-/// use geodex::numerics::Grid;
+/// use geodex::numerics::{Control, Grid};
 /// use geodex::numerics::anisotropic::height_map::height_map_metric;
 /// let grid = Grid::unit(&[8, 8])?;
 /// let h: Vec<f64> = (0..64).map(|i| 2.0 * (i / 8) as f64).collect(); // slope 2 along axis 0
-/// let t = height_map_metric(&grid, &h, &[1.0], 0.0)?;
+/// let t = height_map_metric(&grid, &h, &[1.0], 0.0, &Control::new())?;
 /// assert_eq!(t.at(9), &[5.0, 0.0, 1.0]);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
@@ -39,6 +42,7 @@ pub fn height_map_metric(
     h: &[f64],
     w: &[f64],
     sigma: f64,
+    control: &Control<'_>,
 ) -> Result<TensorField, TensorError> {
     if h.len() != grid.len() {
         return Err(TensorError::Parameter {
@@ -74,18 +78,13 @@ pub fn height_map_metric(
     }
     let smoothed;
     let h = if sigma > 0.0 {
-        smoothed = gaussian_smooth(grid, h, sigma).map_err(|e| TensorError::Parameter {
-            field: "sigma",
-            reason: e.to_string(),
-        })?;
+        smoothed =
+            gaussian_smooth(grid, h, sigma, control).map_err(|e| filter_error("sigma", e))?;
         &smoothed[..]
     } else {
         h
     };
-    let grad = gradient(grid, h).map_err(|e| TensorError::Parameter {
-        field: "heights",
-        reason: e.to_string(),
-    })?;
+    let grad = gradient(grid, h, control).map_err(|e| filter_error("heights", e))?;
     let d = grid.ndim();
     let nc = components(d);
     let mut out = Vec::with_capacity(grid.len() * nc);

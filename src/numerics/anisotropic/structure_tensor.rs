@@ -23,25 +23,36 @@
 //! direction, and as `A → 0` everywhere.
 
 use super::tensor::{components, TensorError, TensorField};
-use crate::numerics::filters::{gaussian_smooth, gradient};
+use crate::numerics::filters::{gaussian_smooth, gradient, FilterError};
 use crate::numerics::grid::Grid;
+use crate::numerics::Control;
+
+/// A filter error as a tensor error: a cancellation stays one, anything
+/// else is a bad `field`.
+pub(super) fn filter_error(field: &'static str, e: FilterError) -> TensorError {
+    match e {
+        FilterError::Cancelled => TensorError::Cancelled,
+        other => TensorError::Parameter {
+            field,
+            reason: other.to_string(),
+        },
+    }
+}
 
 /// The structure tensor `J` of `image` (one value per cell, C order) with
 /// noise scale `sigma` and integration scale `rho` (physical units), as 3 or
-/// 6 components per cell (`[j00, j01, j11]`, axis 0 first).
+/// 6 components per cell (`[j00, j01, j11]`, axis 0 first). `control` is
+/// polled by the filters, once per line.
 pub fn structure_tensor(
     grid: &Grid,
     image: &[f64],
     sigma: f64,
     rho: f64,
+    control: &Control<'_>,
 ) -> Result<Vec<f64>, TensorError> {
-    let param =
-        |field: &'static str, e: crate::numerics::filters::FilterError| TensorError::Parameter {
-            field,
-            reason: e.to_string(),
-        };
-    let smoothed = gaussian_smooth(grid, image, sigma).map_err(|e| param("sigma", e))?;
-    let grad = gradient(grid, &smoothed).map_err(|e| param("image", e))?;
+    let smoothed =
+        gaussian_smooth(grid, image, sigma, control).map_err(|e| filter_error("sigma", e))?;
+    let grad = gradient(grid, &smoothed, control).map_err(|e| filter_error("image", e))?;
     let d = grid.ndim();
     let nc = components(d);
     let mut comps: Vec<Vec<f64>> = vec![Vec::with_capacity(grid.len()); nc];
@@ -57,7 +68,7 @@ pub fn structure_tensor(
     }
     let mut smooth = Vec::with_capacity(nc);
     for c in comps {
-        smooth.push(gaussian_smooth(grid, &c, rho).map_err(|e| param("rho", e))?);
+        smooth.push(gaussian_smooth(grid, &c, rho, control).map_err(|e| filter_error("rho", e))?);
     }
     let mut out = Vec::with_capacity(grid.len() * nc);
     for i in 0..grid.len() {
@@ -73,12 +84,12 @@ pub fn structure_tensor(
 ///
 /// # Examples
 /// ```
-/// use geodex::numerics::Grid;
+/// use geodex::numerics::{Control, Grid};
 /// use geodex::numerics::anisotropic::structure_tensor::edge_metric;
 /// let grid = Grid::unit(&[32, 32])?;
 /// // A vertical edge (intensity varies along axis 1): cheap along axis 0.
 /// let img: Vec<f64> = (0..1024).map(|i| if i % 32 < 16 { 0.0 } else { 1.0 }).collect();
-/// let t = edge_metric(&grid, &img, 1.0, 2.0, 1.0, 0.9)?;
+/// let t = edge_metric(&grid, &img, 1.0, 2.0, 1.0, 0.9, &Control::new())?;
 /// let m = t.at(16 * 32 + 16);
 /// assert!(m[0] < 0.2 && m[2] > 1.8);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
@@ -90,6 +101,7 @@ pub fn edge_metric(
     rho: f64,
     energy: f64,
     anisotropy: f64,
+    control: &Control<'_>,
 ) -> Result<TensorField, TensorError> {
     if image.len() != grid.len() {
         return Err(TensorError::Parameter {
@@ -119,7 +131,7 @@ pub fn edge_metric(
             reason: format!("A = {anisotropy} must be in [0, 1)"),
         });
     }
-    let j = structure_tensor(grid, image, sigma, rho)?;
+    let j = structure_tensor(grid, image, sigma, rho, control)?;
     let d = grid.ndim();
     let nc = components(d);
     let diag: Vec<usize> = (0..d)
@@ -143,4 +155,35 @@ pub fn edge_metric(
         }
     }
     TensorField::from_components(grid, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::anisotropic::height_map::height_map_metric;
+
+    #[test]
+    fn a_raised_flag_stops_the_designed_fields() {
+        let grid = Grid::unit(&[8, 8]).unwrap();
+        let img: Vec<f64> = (0..64).map(f64::from).collect();
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let c = Control::new().with_cancel(&flag);
+        assert_eq!(
+            structure_tensor(&grid, &img, 1.0, 2.0, &c),
+            Err(TensorError::Cancelled)
+        );
+        assert_eq!(
+            edge_metric(&grid, &img, 1.0, 2.0, 1.0, 0.5, &c),
+            Err(TensorError::Cancelled)
+        );
+        assert_eq!(
+            height_map_metric(&grid, &img, &[1.0], 0.0, &c),
+            Err(TensorError::Cancelled)
+        );
+        // A filter's refusal stays a refusal of the parameter.
+        assert!(matches!(
+            structure_tensor(&grid, &img, -1.0, 2.0, &Control::new()),
+            Err(TensorError::Parameter { field: "sigma", .. })
+        ));
+    }
 }

@@ -71,6 +71,10 @@ pub enum TensorError {
         /// Cells of the grid.
         expected: usize,
     },
+    /// The caller raised the cancel flag while a field was being designed
+    /// from an image ([`super::structure_tensor`], [`super::height_map`]).
+    #[error("cancelled")]
+    Cancelled,
 }
 
 /// Number of components of a symmetric `d × d` matrix (3 in 2D, 6 in 3D).

@@ -46,6 +46,24 @@ impl Default for MeshDistanceOptions<'_> {
 /// Distance and nearest-source labels from `sources` with the chosen
 /// method. `heat` may hand in a prefactored solver for this mesh (it is
 /// built on the spot otherwise).
+///
+/// `U(v)` is the length of the shortest path on the surface from `v` to the
+/// nearest source (weighted by `W` for fast marching and Dijkstra); the
+/// exact method gives the polyhedral distance itself, the others converge to
+/// it (except Dijkstra, which measures along edges).
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::mesh::{mesh_distance, shapes, MeshDistanceOptions, MeshMethod, SurfacePoint, Topology};
+/// use geodex::numerics::Control;
+/// let mesh = shapes::flat_square(8, 1.0, 0.0); // [0, 1]² in 8 × 8 cells
+/// let options = MeshDistanceOptions { method: MeshMethod::Exact, ..Default::default() };
+/// let out = mesh_distance(&mesh, &Topology::new(&mesh), &[SurfacePoint::Vertex(0)], &options, None, &Control::new())?;
+/// // On a flat mesh the polyhedral distance is the Euclidean one: (1, 1) is √2 away.
+/// let far = mesh.positions().iter().position(|p| p[0] == 1.0 && p[1] == 1.0).unwrap_or(0);
+/// assert!((out.distance[far] - 2f64.sqrt()).abs() < 1e-12);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn mesh_distance(
     mesh: &TriMesh,
     topo: &Topology,

@@ -181,6 +181,7 @@ fn execute_tensor(
         req.obstacles.as_deref(),
         inputs,
         limits,
+        control,
     )?;
     if req.format != PathFormat::Json && resolved.grid.ndim() == 3 {
         return Err(OpError::invalid(

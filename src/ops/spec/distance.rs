@@ -295,6 +295,7 @@ fn execute_tensor(
         req.obstacles.as_deref(),
         inputs,
         limits,
+        control,
     )?;
     let spec = TensorSolveSpec {
         order: req.order,

@@ -378,6 +378,7 @@ impl TensorSpec {
         grid: &Grid,
         inputs: &dyn Inputs,
         prefix: &str,
+        control: &Control<'_>,
     ) -> Result<TensorField, OpError> {
         let values = |field: &str, id: &str| -> Result<Vec<f64>, OpError> {
             let a = fetch(inputs, field, id)?;
@@ -443,12 +444,13 @@ impl TensorSpec {
             }
             TensorSpec::StructureTensor(s) => {
                 let img = values(&format!("{prefix}.image"), &s.image)?;
-                edge_metric(grid, &img, s.sigma, s.rho, s.energy, s.anisotropy).map_err(err)
+                edge_metric(grid, &img, s.sigma, s.rho, s.energy, s.anisotropy, control)
+                    .map_err(err)
             }
             TensorSpec::HeightMap(h) => {
                 let heights = values(&format!("{prefix}.heights"), &h.heights)?;
                 let w = scalar("energy", &h.energy)?;
-                height_map_metric(grid, &heights, &w, h.sigma).map_err(err)
+                height_map_metric(grid, &heights, &w, h.sigma, control).map_err(err)
             }
         }
     }
@@ -463,6 +465,9 @@ fn param_field(e: &TensorError) -> &'static str {
 
 /// A core tensor error as an [`OpError`] under `prefix`.
 pub fn tensor_error(e: TensorError, prefix: &str) -> OpError {
+    if matches!(e, TensorError::Cancelled) {
+        return OpError::Cancelled;
+    }
     let field = match &e {
         TensorError::Parameter { field, .. } => match *field {
             "eigenvalues" | "direction" | "energy" | "anisotropy" | "angle" | "sigma"
@@ -507,6 +512,7 @@ pub fn resolve_tensor(
     obstacles: Option<&str>,
     inputs: &dyn Inputs,
     limits: &OpLimits,
+    control: &Control<'_>,
 ) -> Result<ResolvedTensor, OpError> {
     spec.validate(prefix, limits)?;
     let shape = spec.shape(inputs, prefix, limits)?;
@@ -520,7 +526,7 @@ pub fn resolve_tensor(
         }
         _ => OpError::invalid("spacing", e.to_string()),
     })?;
-    let mut metric = spec.build(&grid, inputs, prefix)?;
+    let mut metric = spec.build(&grid, inputs, prefix, control)?;
     if let Some(id) = obstacles {
         let m = fetch(inputs, "obstacles", id)?;
         if m.array.shape() != shape.as_slice() {
