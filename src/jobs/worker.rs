@@ -24,9 +24,10 @@ use serde_json::Value;
 use tokio::task::JoinHandle;
 
 use super::db::{Finish, JobRow, Lease};
+use super::model::ms;
 use super::{
-    cancelled_problem, ms, now_ms, problem_json, stop, JobDb, Jobs, ResultStore, RunFlags,
-    StoredOutput,
+    cancelled_problem, now_ms, problem_json, stop, time_limit_problem, JobDb, Jobs, ResultStore,
+    RunFlags, StoredOutput,
 };
 use crate::datasets::inputs::StoreInputs;
 use crate::io;
@@ -571,19 +572,6 @@ impl Jobs {
             }
         }
     }
-}
-
-/// The problem of a job stopped at its time limit.
-pub fn time_limit_problem(limit_ms: i64) -> ApiError {
-    ApiError::of(
-        Kind::TimeLimit,
-        format!(
-            "the job ran past its time limit of {} s and was stopped; submit it again with a larger \
-             time_limit_secs or a smaller problem",
-            limit_ms as f64 / 1000.0
-        ),
-    )
-    .with_field("time_limit_secs")
 }
 
 /// How an attempt ended before it was written back.
