@@ -50,7 +50,7 @@ use crate::problem::ApiError;
 use model::ms;
 
 pub use db::{DbError, JobDb, JobRow};
-pub(crate) use flags::{stop, RunFlags};
+pub(crate) use flags::{RunFlags, StopReason};
 pub use model::{
     cancelled_problem, now_ms, problem_json, time_limit_problem, valid_id, Job, JobState, Priority,
     ResultRef, StoredOutput, SubmitJob,
@@ -198,7 +198,7 @@ impl Jobs {
     }
 
     /// Raises the flag of a job if this process runs it (no-op otherwise).
-    pub(crate) fn raise_local(&self, id: &str, reason: u8) {
+    pub(crate) fn raise_local(&self, id: &str, reason: StopReason) {
         let running = self.running.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(f) = running.get(id) {
             f.stop(reason);

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use super::db::{self, JobRow};
-use super::flags::stop;
+use super::flags::StopReason;
 use super::model::{
     cancelled_problem, ms, now_ms, problem_json, valid_id, Job, JobState, Priority, StoredOutput,
     SubmitJob,
@@ -143,7 +143,7 @@ impl Jobs {
         let row = self.db.cancel(id, now, self.expiry(now), &problem).await?;
         // A job running in this process stops at once, without waiting for its heartbeat.
         if row.as_ref().is_some_and(|r| r.state == "running") {
-            self.raise_local(id, stop::CANCEL);
+            self.raise_local(id, StopReason::Cancel);
         }
         Ok(row)
     }

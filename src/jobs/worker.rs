@@ -26,8 +26,8 @@ use tokio::task::JoinHandle;
 use super::db::{Finish, JobRow, Lease};
 use super::model::ms;
 use super::{
-    cancelled_problem, now_ms, problem_json, stop, time_limit_problem, JobDb, Jobs, ResultStore,
-    RunFlags, StoredOutput,
+    cancelled_problem, now_ms, problem_json, time_limit_problem, JobDb, Jobs, ResultStore,
+    RunFlags, StopReason, StoredOutput,
 };
 use crate::datasets::inputs::StoreInputs;
 use crate::io;
@@ -68,7 +68,7 @@ impl Jobs {
         self.wake.notify_waiters();
         let running = self.running.lock().unwrap_or_else(|p| p.into_inner());
         for flags in running.values() {
-            flags.stop(stop::SHUTDOWN);
+            flags.stop(StopReason::Shutdown);
         }
     }
 
@@ -141,7 +141,7 @@ impl Jobs {
                 loop {
                     let n = l.recv().await?;
                     if n.channel() == super::db::CHANNEL_CANCEL {
-                        self.raise_local(n.payload(), stop::CANCEL);
+                        self.raise_local(n.payload(), StopReason::Cancel);
                     } else {
                         self.wake.notify_one();
                     }
@@ -257,7 +257,7 @@ impl Jobs {
         }
         let flags = Arc::new(RunFlags::default());
         if row.cancel_requested {
-            flags.stop(stop::CANCEL);
+            flags.stop(StopReason::Cancel);
         }
         {
             let mut running = self.running.lock().unwrap_or_else(|p| p.into_inner());
@@ -265,7 +265,7 @@ impl Jobs {
         }
         if self.is_stopping() {
             // Claimed while SIGTERM arrived: give it back untouched.
-            flags.stop(stop::SHUTDOWN);
+            flags.stop(StopReason::Shutdown);
         }
         let started = Instant::now();
         let heartbeat = self.heartbeat(&lease, &flags, row.time_limit_ms);
@@ -298,7 +298,7 @@ impl Jobs {
         loop {
             tick.tick().await;
             if started.elapsed() >= limit {
-                flags.stop(stop::TIME_LIMIT);
+                flags.stop(StopReason::TimeLimit);
             }
             let now = now_ms();
             match self
@@ -309,18 +309,18 @@ impl Jobs {
                 Ok(Some(cancel)) => {
                     last_ok = Instant::now();
                     if cancel {
-                        flags.stop(stop::CANCEL);
+                        flags.stop(StopReason::Cancel);
                     }
                 }
                 Ok(None) => {
                     tracing::warn!(job = %lease.id, "lease lost; stopping this attempt");
-                    flags.stop(stop::LEASE_LOST);
+                    flags.stop(StopReason::LeaseLost);
                     return;
                 }
                 Err(e) => {
                     tracing::warn!(job = %lease.id, error = %e, "heartbeat failed");
                     if last_ok.elapsed() >= self.config.lease {
-                        flags.stop(stop::LEASE_LOST);
+                        flags.stop(StopReason::LeaseLost);
                         return;
                     }
                 }
@@ -365,7 +365,7 @@ impl Jobs {
             Err(RunError::Op(OpError::Cancelled)) => Outcome::Stopped,
             Err(RunError::Op(e)) => Outcome::Failed(ApiError::from(e), "invalid"),
             Err(RunError::Pool(PoolError::Deadline(_))) => {
-                flags.stop(stop::TIME_LIMIT);
+                flags.stop(StopReason::TimeLimit);
                 Outcome::Stopped
             }
             Err(RunError::Pool(PoolError::Busy { .. })) => Outcome::Release,
@@ -446,7 +446,7 @@ impl Jobs {
         let reason = flags.reason();
         let (write, label): (Option<Finish<'_>>, &'static str) = match outcome {
             Outcome::Succeeded(doc, outputs) => {
-                if reason == stop::LEASE_LOST {
+                if reason == Some(StopReason::LeaseLost) {
                     (None, "lease_lost")
                 } else {
                     let f = finish(
@@ -472,7 +472,7 @@ impl Jobs {
                 (Some(f), "failed")
             }
             Outcome::Stopped => match reason {
-                stop::CANCEL => (
+                Some(StopReason::Cancel) => (
                     Some(finish(
                         "cancelled",
                         flags.progress(),
@@ -482,7 +482,7 @@ impl Jobs {
                     )),
                     "cancelled",
                 ),
-                stop::TIME_LIMIT => {
+                Some(StopReason::TimeLimit) => {
                     metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => "time_limit")
                         .increment(1);
                     let e = time_limit_problem(row.time_limit_ms);
@@ -497,11 +497,11 @@ impl Jobs {
                         "time_limit",
                     )
                 }
-                stop::SHUTDOWN => {
+                Some(StopReason::Shutdown) => {
                     self.release(lease, true).await;
                     return "released";
                 }
-                _ => (None, "lease_lost"),
+                Some(StopReason::LeaseLost) | None => (None, "lease_lost"),
             },
             Outcome::Release => {
                 self.release(lease, true).await;
