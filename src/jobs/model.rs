@@ -5,6 +5,8 @@
 //! array is stored ([`StoredOutput`]), the problems a job ends with, job ids
 //! and the millisecond times of the `geodex_jobs` table.
 
+use std::fmt;
+use std::str::FromStr;
 use std::time::Duration;
 
 use chrono::{DateTime, TimeZone, Utc};
@@ -46,6 +48,8 @@ impl Priority {
 }
 
 /// State of a job.
+// The doc line above is this schema's description in api/openapi.json; the
+// note on the names is on `as_str`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum JobState {
@@ -62,8 +66,19 @@ pub enum JobState {
 }
 
 impl JobState {
-    /// The wire (and database) name.
-    pub fn as_str(self) -> &'static str {
+    /// Every state, in the order of a job's life.
+    pub const ALL: [JobState; 5] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Succeeded,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
+
+    /// The wire (and database) name: the one mapping to the names in the
+    /// `state` column and in JSON ([`FromStr`] reads it back; serde's names
+    /// are the same, which a test checks).
+    pub const fn as_str(self) -> &'static str {
         match self {
             JobState::Queued => "queued",
             JobState::Running => "running",
@@ -73,22 +88,34 @@ impl JobState {
         }
     }
 
-    fn parse(s: &str) -> Self {
-        match s {
-            "running" => JobState::Running,
-            "succeeded" => JobState::Succeeded,
-            "failed" => JobState::Failed,
-            "cancelled" => JobState::Cancelled,
-            _ => JobState::Queued,
-        }
-    }
-
     /// True once the job can no longer change.
     pub fn is_final(self) -> bool {
         matches!(
             self,
             JobState::Succeeded | JobState::Failed | JobState::Cancelled
         )
+    }
+}
+
+impl fmt::Display for JobState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A `state` value that names no [`JobState`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown job state '{0}'")]
+pub struct UnknownState(pub String);
+
+impl FromStr for JobState {
+    type Err = UnknownState;
+
+    fn from_str(s: &str) -> Result<Self, UnknownState> {
+        JobState::ALL
+            .into_iter()
+            .find(|state| state.as_str() == s)
+            .ok_or_else(|| UnknownState(s.to_string()))
     }
 }
 
@@ -226,7 +253,7 @@ impl From<&JobRow> for Job {
             url: format!("/v1/jobs/{}", r.id),
             id: r.id.clone(),
             operation: r.operation.clone(),
-            state: JobState::parse(&r.state),
+            state: r.state,
             priority: Priority::from_rank(r.priority),
             progress: r.progress,
             attempts: r.attempts,
@@ -300,6 +327,18 @@ pub fn time_limit_problem(limit_ms: i64) -> ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn state_names_are_one_mapping() {
+        for state in JobState::ALL {
+            assert_eq!(state.as_str().parse::<JobState>(), Ok(state));
+            assert_eq!(state.to_string(), state.as_str());
+            let wire = serde_json::to_value(state).unwrap();
+            assert_eq!(wire, Value::String(state.as_str().into()));
+            assert_eq!(serde_json::from_value::<JobState>(wire).unwrap(), state);
+        }
+        assert_eq!("done".parse::<JobState>(), Err(UnknownState("done".into())));
+    }
 
     #[test]
     fn ids() {

@@ -127,10 +127,7 @@ impl Jobs {
         cursor: Option<&str>,
         limit: i64,
     ) -> Result<Vec<JobRow>, ApiError> {
-        Ok(self
-            .db
-            .list(state.map(JobState::as_str), cursor, limit)
-            .await?)
+        Ok(self.db.list(state, cursor, limit).await?)
     }
 
     /// Cancels a job (see [`JobDb::cancel`]).
@@ -142,7 +139,7 @@ impl Jobs {
         let problem = problem_json(&cancelled_problem(), id);
         let row = self.db.cancel(id, now, self.expiry(now), &problem).await?;
         // A job running in this process stops at once, without waiting for its heartbeat.
-        if row.as_ref().is_some_and(|r| r.state == "running") {
+        if row.as_ref().is_some_and(|r| r.state == JobState::Running) {
             self.raise_local(id, StopReason::Cancel);
         }
         Ok(row)

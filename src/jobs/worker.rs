@@ -26,8 +26,8 @@ use tokio::task::JoinHandle;
 use super::db::{Finish, JobRow, Lease};
 use super::model::ms;
 use super::{
-    cancelled_problem, now_ms, problem_json, time_limit_problem, JobDb, Jobs, ResultStore,
-    RunFlags, StopReason, StoredOutput,
+    cancelled_problem, now_ms, problem_json, time_limit_problem, JobDb, JobState, Jobs,
+    ResultStore, RunFlags, StopReason, StoredOutput,
 };
 use crate::datasets::inputs::StoreInputs;
 use crate::io;
@@ -217,12 +217,12 @@ impl Jobs {
 
     async fn publish_gauges(&self) {
         if let Ok(counts) = self.db.counts().await {
-            for state in ["queued", "running", "succeeded", "failed", "cancelled"] {
+            for state in JobState::ALL {
                 let n = counts
                     .iter()
-                    .find(|(s, _)| s == state)
+                    .find(|(s, _)| *s == state)
                     .map_or(0, |(_, n)| *n);
-                metrics::gauge!(JOBS, "state" => state).set(n as f64);
+                metrics::gauge!(JOBS, "state" => state.as_str()).set(n as f64);
             }
         }
     }
@@ -444,13 +444,13 @@ impl Jobs {
             expires_at,
         };
         let reason = flags.reason();
-        let (write, label): (Option<Finish<'_>>, &'static str) = match outcome {
+        let (write, label): (Option<Finish>, &'static str) = match outcome {
             Outcome::Succeeded(doc, outputs) => {
                 if reason == Some(StopReason::LeaseLost) {
                     (None, "lease_lost")
                 } else {
                     let f = finish(
-                        "succeeded",
+                        JobState::Succeeded,
                         1.0,
                         serde_json::to_string(&doc).ok(),
                         serde_json::to_string(&outputs).ok(),
@@ -463,7 +463,7 @@ impl Jobs {
                 metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => why)
                     .increment(1);
                 let f = finish(
-                    "failed",
+                    JobState::Failed,
                     flags.progress(),
                     None,
                     None,
@@ -474,7 +474,7 @@ impl Jobs {
             Outcome::Stopped => match reason {
                 Some(StopReason::Cancel) => (
                     Some(finish(
-                        "cancelled",
+                        JobState::Cancelled,
                         flags.progress(),
                         None,
                         None,
@@ -488,7 +488,7 @@ impl Jobs {
                     let e = time_limit_problem(row.time_limit_ms);
                     (
                         Some(finish(
-                            "failed",
+                            JobState::Failed,
                             flags.progress(),
                             None,
                             None,
@@ -515,7 +515,7 @@ impl Jobs {
                         .increment(1);
                     (
                         Some(finish(
-                            "failed",
+                            JobState::Failed,
                             flags.progress(),
                             None,
                             None,
@@ -540,13 +540,13 @@ impl Jobs {
         };
         match self.db.finish(lease, &f).await {
             Ok(true) => {
-                if f.state == "succeeded" {
+                if f.state == JobState::Succeeded {
                     // Objects of earlier attempts that died before publishing.
                     if let Err(e) = self.results.remove_job(&row.id, Some(lease.attempt)).await {
                         tracing::warn!(job = %row.id, error = %e, "removing stale attempt objects failed");
                     }
                 }
-                tracing::info!(job = %row.id, state = f.state, attempt = lease.attempt, "job ended");
+                tracing::info!(job = %row.id, state = f.state.as_str(), attempt = lease.attempt, "job ended");
                 label
             }
             Ok(false) => {
