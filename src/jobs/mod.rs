@@ -104,17 +104,29 @@ pub struct JobsConfig {
 /// The job system of one process: submission, queries and the workers.
 #[derive(Debug)]
 pub struct Jobs {
+    /// The queue (and the public job records).
     pub(crate) db: JobDb,
+    /// Where result arrays are written.
     pub(crate) results: ResultStore,
+    /// The settings.
     pub(crate) config: JobsConfig,
+    /// `host:pid:random`: the lease owner of this process's claims.
     pub(crate) worker_id: String,
+    /// Input datasets of the operations.
     pub(crate) datasets: Arc<DatasetStore>,
+    /// The solver pool the jobs run on (its room gates claims).
     pub(crate) pool: Arc<SolverPool>,
+    /// Runs an operation on `pool`.
     pub(crate) runner: crate::runner::Runner,
+    /// Limits a submitted request is validated against.
     pub(crate) limits: OpLimits,
+    /// Limits used to decode stored results.
     pub(crate) io_limits: Limits,
+    /// Wakes an idle worker (new or released job).
     pub(crate) wake: Notify,
+    /// Set at SIGTERM: workers stop claiming.
     pub(crate) stopping: AtomicBool,
+    /// The flags of the attempts this process runs, by job id.
     pub(crate) running: Mutex<HashMap<String, Arc<RunFlags>>>,
 }
 
