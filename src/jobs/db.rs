@@ -10,6 +10,10 @@
 //! later write of that worker (heartbeat, result, release) is conditional on
 //! `(id, lease_owner, attempts, state = 'running')`: a worker whose lease ran
 //! out and whose job was claimed again cannot overwrite the new attempt.
+//!
+//! **States.** The `state` column holds [`JobState::as_str`]; rows decode it
+//! back into a [`JobState`], and the statements name states through the
+//! constants below, so the names are spelled in one place.
 
 use std::borrow::Cow;
 use std::str::FromStr;
@@ -22,10 +26,21 @@ use sqlx::sqlite::{
 };
 use sqlx::{Row, SqlSafeStr};
 
+use super::model::JobState;
+
 /// Name of the PostgreSQL notification channel that announces new jobs.
 pub const CHANNEL_NEW: &str = "geodex_jobs";
 /// Name of the PostgreSQL notification channel that announces cancellations.
 pub const CHANNEL_CANCEL: &str = "geodex_jobs_cancel";
+
+/// [`JobState::Queued`] in statements.
+const QUEUED: &str = JobState::Queued.as_str();
+/// [`JobState::Running`] in statements.
+const RUNNING: &str = JobState::Running.as_str();
+/// [`JobState::Failed`] in statements.
+const FAILED: &str = JobState::Failed.as_str();
+/// [`JobState::Cancelled`] in statements.
+const CANCELLED: &str = JobState::Cancelled.as_str();
 
 /// A database error of the job store.
 #[derive(Debug, thiserror::Error)]
@@ -50,8 +65,8 @@ pub struct JobRow {
     pub operation: String,
     /// Canonical JSON of the request.
     pub params: String,
-    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
-    pub state: String,
+    /// Where the job is in its life.
+    pub state: JobState,
     /// 1 interactive, 0 batch.
     pub priority: i64,
     /// Time limit of one attempt, ms.
@@ -115,9 +130,9 @@ pub struct NewJob {
 
 /// How a finished attempt is written back.
 #[derive(Debug, Clone)]
-pub struct Finish<'a> {
-    /// `succeeded`, `failed` or `cancelled`.
-    pub state: &'a str,
+pub struct Finish {
+    /// [`JobState::Succeeded`], [`JobState::Failed`] or [`JobState::Cancelled`].
+    pub state: JobState,
     /// Final progress.
     pub progress: f64,
     /// Result document.
@@ -165,6 +180,15 @@ macro_rules! sql {
     };
 }
 
+/// Reads a `state` value; a name that is no [`JobState`] is a decoding error
+/// of the column.
+fn decode_state(name: String) -> Result<JobState, sqlx::Error> {
+    name.parse().map_err(|e| sqlx::Error::ColumnDecode {
+        index: "state".into(),
+        source: Box::new(e),
+    })
+}
+
 macro_rules! decode_row {
     ($row:expr) => {{
         let r = $row;
@@ -172,7 +196,7 @@ macro_rules! decode_row {
             id: r.try_get("id")?,
             operation: r.try_get("operation")?,
             params: r.try_get("params")?,
-            state: r.try_get("state")?,
+            state: decode_state(r.try_get("state")?)?,
             priority: r.try_get("priority")?,
             time_limit_ms: r.try_get("time_limit_ms")?,
             attempts: r.try_get("attempts")?,
@@ -268,12 +292,13 @@ impl JobDb {
     /// Inserts a job. With an idempotency key already used, inserts nothing
     /// and returns the existing job and `false`.
     pub async fn insert(&self, job: &NewJob) -> Result<(JobRow, bool), DbError> {
-        let insert =
+        let insert = sql!(
             "INSERT INTO geodex_jobs (id, operation, params, state, priority, time_limit_ms, \
              attempts, max_attempts, cancel_requested, progress, idempotency_key, request_hash, \
              created_at, updated_at) \
-             VALUES ($1, $2, $3, 'queued', $4, $5, 0, $6, FALSE, 0, $7, $8, $9, $9) \
-             ON CONFLICT (idempotency_key) DO NOTHING";
+             VALUES ($1, $2, $3, '{QUEUED}', $4, $5, 0, $6, FALSE, 0, $7, $8, $9, $9) \
+             ON CONFLICT (idempotency_key) DO NOTHING"
+        );
         let done = on_pool!(self, p => sqlx::query(insert)
             .bind(&job.id)
             .bind(&job.operation)
@@ -323,7 +348,7 @@ impl JobDb {
     /// Jobs, newest first, optionally of one state, with ids below `before`.
     pub async fn list(
         &self,
-        state: Option<&str>,
+        state: Option<JobState>,
         before: Option<&str>,
         limit: i64,
     ) -> Result<Vec<JobRow>, DbError> {
@@ -333,7 +358,7 @@ impl JobDb {
         );
         Ok(on_pool!(self, p => {
             let rows = sqlx::query(q)
-                .bind(state)
+                .bind(state.map(JobState::as_str))
                 .bind(before)
                 .bind(limit)
                 .fetch_all(p)
@@ -359,9 +384,9 @@ impl JobDb {
             JobDb::Postgres(_) => " FOR UPDATE SKIP LOCKED",
         };
         let q = sql!(
-            "UPDATE geodex_jobs SET state = 'running', lease_owner = $1, lease_until = $2, \
+            "UPDATE geodex_jobs SET state = '{RUNNING}', lease_owner = $1, lease_until = $2, \
              attempts = attempts + 1, started_at = $3, updated_at = $3, progress = 0 \
-             WHERE state = 'queued' AND id = (SELECT id FROM geodex_jobs WHERE state = 'queued' \
+             WHERE state = '{QUEUED}' AND id = (SELECT id FROM geodex_jobs WHERE state = '{QUEUED}' \
              ORDER BY priority DESC, id LIMIT 1{lock}) RETURNING {COLUMNS}"
         );
         Ok(on_pool!(self, p => {
@@ -387,9 +412,11 @@ impl JobDb {
         now: i64,
         lease_until: i64,
     ) -> Result<Option<bool>, DbError> {
-        let q = "UPDATE geodex_jobs SET lease_until = $1, progress = $2, updated_at = $3 \
-                 WHERE id = $4 AND lease_owner = $5 AND attempts = $6 AND state = 'running' \
-                 RETURNING cancel_requested";
+        let q = sql!(
+            "UPDATE geodex_jobs SET lease_until = $1, progress = $2, updated_at = $3 \
+             WHERE id = $4 AND lease_owner = $5 AND attempts = $6 AND state = '{RUNNING}' \
+             RETURNING cancel_requested"
+        );
         Ok(on_pool!(self, p => {
             match sqlx::query(q)
                 .bind(lease_until)
@@ -408,13 +435,15 @@ impl JobDb {
     }
 
     /// Writes the end of an attempt. False when the lease was lost (nothing written).
-    pub async fn finish(&self, lease: &Lease, f: &Finish<'_>) -> Result<bool, DbError> {
-        let q = "UPDATE geodex_jobs SET state = $1, progress = $2, result = $3, outputs = $4, \
-                 error = $5, finished_at = $6, updated_at = $6, expires_at = $7, lease_owner = NULL, \
-                 lease_until = NULL \
-                 WHERE id = $8 AND lease_owner = $9 AND attempts = $10 AND state = 'running'";
+    pub async fn finish(&self, lease: &Lease, f: &Finish) -> Result<bool, DbError> {
+        let q = sql!(
+            "UPDATE geodex_jobs SET state = $1, progress = $2, result = $3, outputs = $4, \
+             error = $5, finished_at = $6, updated_at = $6, expires_at = $7, lease_owner = NULL, \
+             lease_until = NULL \
+             WHERE id = $8 AND lease_owner = $9 AND attempts = $10 AND state = '{RUNNING}'"
+        );
         let n = on_pool!(self, p => sqlx::query(q)
-            .bind(f.state)
+            .bind(f.state.as_str())
             .bind(f.progress)
             .bind(&f.result)
             .bind(&f.outputs)
@@ -433,9 +462,11 @@ impl JobDb {
     /// Puts a claimed job back in the queue. `uncount` gives the attempt
     /// back (shutdown, full pool): the job did not fail.
     pub async fn release(&self, lease: &Lease, now: i64, uncount: bool) -> Result<bool, DbError> {
-        let q = "UPDATE geodex_jobs SET state = 'queued', lease_owner = NULL, lease_until = NULL, \
-                 attempts = attempts - $1, progress = 0, updated_at = $2 \
-                 WHERE id = $3 AND lease_owner = $4 AND attempts = $5 AND state = 'running'";
+        let q = sql!(
+            "UPDATE geodex_jobs SET state = '{QUEUED}', lease_owner = NULL, lease_until = NULL, \
+             attempts = attempts - $1, progress = 0, updated_at = $2 \
+             WHERE id = $3 AND lease_owner = $4 AND attempts = $5 AND state = '{RUNNING}'"
+        );
         let n = on_pool!(self, p => sqlx::query(q)
             .bind(i64::from(uncount))
             .bind(now)
@@ -467,11 +498,15 @@ impl JobDb {
         expires_at: i64,
         problem: &str,
     ) -> Result<Option<JobRow>, DbError> {
-        let queued = "UPDATE geodex_jobs SET state = 'cancelled', cancel_requested = TRUE, \
-                      finished_at = $1, updated_at = $1, expires_at = $2, error = $3 \
-                      WHERE id = $4 AND state = 'queued'";
-        let running = "UPDATE geodex_jobs SET cancel_requested = TRUE, updated_at = $1 \
-                       WHERE id = $2 AND state = 'running'";
+        let queued = sql!(
+            "UPDATE geodex_jobs SET state = '{CANCELLED}', cancel_requested = TRUE, \
+             finished_at = $1, updated_at = $1, expires_at = $2, error = $3 \
+             WHERE id = $4 AND state = '{QUEUED}'"
+        );
+        let running = sql!(
+            "UPDATE geodex_jobs SET cancel_requested = TRUE, updated_at = $1 \
+             WHERE id = $2 AND state = '{RUNNING}'"
+        );
         let n = on_pool!(self, p => sqlx::query(queued)
             .bind(now)
             .bind(expires_at)
@@ -509,17 +544,22 @@ impl JobDb {
         cancelled_problem: &str,
         failed_problem: &str,
     ) -> Result<Reaped, DbError> {
-        let cancel =
-            "UPDATE geodex_jobs SET state = 'cancelled', finished_at = $1, updated_at = $1, \
-                      expires_at = $2, error = $3, lease_owner = NULL, lease_until = NULL \
-                      WHERE state = 'running' AND lease_until < $1 AND cancel_requested = TRUE";
-        let fail = "UPDATE geodex_jobs SET state = 'failed', finished_at = $1, updated_at = $1, \
-                    expires_at = $2, error = $3, lease_owner = NULL, lease_until = NULL \
-                    WHERE state = 'running' AND lease_until < $1 AND attempts >= max_attempts \
-                    RETURNING id, operation";
-        let requeue = "UPDATE geodex_jobs SET state = 'queued', lease_owner = NULL, \
-                       lease_until = NULL, progress = 0, updated_at = $1 \
-                       WHERE state = 'running' AND lease_until < $1 RETURNING id, operation";
+        let cancel = sql!(
+            "UPDATE geodex_jobs SET state = '{CANCELLED}', finished_at = $1, updated_at = $1, \
+             expires_at = $2, error = $3, lease_owner = NULL, lease_until = NULL \
+             WHERE state = '{RUNNING}' AND lease_until < $1 AND cancel_requested = TRUE"
+        );
+        let fail = sql!(
+            "UPDATE geodex_jobs SET state = '{FAILED}', finished_at = $1, updated_at = $1, \
+             expires_at = $2, error = $3, lease_owner = NULL, lease_until = NULL \
+             WHERE state = '{RUNNING}' AND lease_until < $1 AND attempts >= max_attempts \
+             RETURNING id, operation"
+        );
+        let requeue = sql!(
+            "UPDATE geodex_jobs SET state = '{QUEUED}', lease_owner = NULL, \
+             lease_until = NULL, progress = 0, updated_at = $1 \
+             WHERE state = '{RUNNING}' AND lease_until < $1 RETURNING id, operation"
+        );
         let (cancelled, failed, requeued) = on_pool!(self, p => {
             let cancelled = sqlx::query(cancel)
                 .bind(now)
@@ -583,12 +623,12 @@ impl JobDb {
     }
 
     /// Number of jobs in each state.
-    pub async fn counts(&self) -> Result<Vec<(String, i64)>, DbError> {
+    pub async fn counts(&self) -> Result<Vec<(JobState, i64)>, DbError> {
         let q = "SELECT state, COUNT(*) AS n FROM geodex_jobs GROUP BY state";
         Ok(on_pool!(self, p => {
             let mut out = Vec::new();
             for r in sqlx::query(q).fetch_all(p).await? {
-                out.push((r.try_get::<String, _>("state")?, r.try_get::<i64, _>("n")?));
+                out.push((decode_state(r.try_get("state")?)?, r.try_get::<i64, _>("n")?));
             }
             out
         }))

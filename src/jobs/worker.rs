@@ -24,9 +24,10 @@ use serde_json::Value;
 use tokio::task::JoinHandle;
 
 use super::db::{Finish, JobRow, Lease};
+use super::model::ms;
 use super::{
-    cancelled_problem, ms, now_ms, problem_json, stop, JobDb, Jobs, ResultStore, RunFlags,
-    StoredOutput,
+    cancelled_problem, now_ms, problem_json, time_limit_problem, JobDb, JobState, Jobs,
+    ResultStore, RunFlags, StopReason, StoredOutput,
 };
 use crate::datasets::inputs::StoreInputs;
 use crate::io;
@@ -67,7 +68,7 @@ impl Jobs {
         self.wake.notify_waiters();
         let running = self.running.lock().unwrap_or_else(|p| p.into_inner());
         for flags in running.values() {
-            flags.stop(stop::SHUTDOWN);
+            flags.stop(StopReason::Shutdown);
         }
     }
 
@@ -140,7 +141,7 @@ impl Jobs {
                 loop {
                     let n = l.recv().await?;
                     if n.channel() == super::db::CHANNEL_CANCEL {
-                        self.raise_local(n.payload(), stop::CANCEL);
+                        self.raise_local(n.payload(), StopReason::Cancel);
                     } else {
                         self.wake.notify_one();
                     }
@@ -216,12 +217,12 @@ impl Jobs {
 
     async fn publish_gauges(&self) {
         if let Ok(counts) = self.db.counts().await {
-            for state in ["queued", "running", "succeeded", "failed", "cancelled"] {
+            for state in JobState::ALL {
                 let n = counts
                     .iter()
-                    .find(|(s, _)| s == state)
+                    .find(|(s, _)| *s == state)
                     .map_or(0, |(_, n)| *n);
-                metrics::gauge!(JOBS, "state" => state).set(n as f64);
+                metrics::gauge!(JOBS, "state" => state.as_str()).set(n as f64);
             }
         }
     }
@@ -256,7 +257,7 @@ impl Jobs {
         }
         let flags = Arc::new(RunFlags::default());
         if row.cancel_requested {
-            flags.stop(stop::CANCEL);
+            flags.stop(StopReason::Cancel);
         }
         {
             let mut running = self.running.lock().unwrap_or_else(|p| p.into_inner());
@@ -264,7 +265,7 @@ impl Jobs {
         }
         if self.is_stopping() {
             // Claimed while SIGTERM arrived: give it back untouched.
-            flags.stop(stop::SHUTDOWN);
+            flags.stop(StopReason::Shutdown);
         }
         let started = Instant::now();
         let heartbeat = self.heartbeat(&lease, &flags, row.time_limit_ms);
@@ -297,7 +298,7 @@ impl Jobs {
         loop {
             tick.tick().await;
             if started.elapsed() >= limit {
-                flags.stop(stop::TIME_LIMIT);
+                flags.stop(StopReason::TimeLimit);
             }
             let now = now_ms();
             match self
@@ -308,18 +309,18 @@ impl Jobs {
                 Ok(Some(cancel)) => {
                     last_ok = Instant::now();
                     if cancel {
-                        flags.stop(stop::CANCEL);
+                        flags.stop(StopReason::Cancel);
                     }
                 }
                 Ok(None) => {
                     tracing::warn!(job = %lease.id, "lease lost; stopping this attempt");
-                    flags.stop(stop::LEASE_LOST);
+                    flags.stop(StopReason::LeaseLost);
                     return;
                 }
                 Err(e) => {
                     tracing::warn!(job = %lease.id, error = %e, "heartbeat failed");
                     if last_ok.elapsed() >= self.config.lease {
-                        flags.stop(stop::LEASE_LOST);
+                        flags.stop(StopReason::LeaseLost);
                         return;
                     }
                 }
@@ -364,7 +365,7 @@ impl Jobs {
             Err(RunError::Op(OpError::Cancelled)) => Outcome::Stopped,
             Err(RunError::Op(e)) => Outcome::Failed(ApiError::from(e), "invalid"),
             Err(RunError::Pool(PoolError::Deadline(_))) => {
-                flags.stop(stop::TIME_LIMIT);
+                flags.stop(StopReason::TimeLimit);
                 Outcome::Stopped
             }
             Err(RunError::Pool(PoolError::Busy { .. })) => Outcome::Release,
@@ -443,13 +444,13 @@ impl Jobs {
             expires_at,
         };
         let reason = flags.reason();
-        let (write, label): (Option<Finish<'_>>, &'static str) = match outcome {
+        let (write, label): (Option<Finish>, &'static str) = match outcome {
             Outcome::Succeeded(doc, outputs) => {
-                if reason == stop::LEASE_LOST {
+                if reason == Some(StopReason::LeaseLost) {
                     (None, "lease_lost")
                 } else {
                     let f = finish(
-                        "succeeded",
+                        JobState::Succeeded,
                         1.0,
                         serde_json::to_string(&doc).ok(),
                         serde_json::to_string(&outputs).ok(),
@@ -462,7 +463,7 @@ impl Jobs {
                 metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => why)
                     .increment(1);
                 let f = finish(
-                    "failed",
+                    JobState::Failed,
                     flags.progress(),
                     None,
                     None,
@@ -471,9 +472,9 @@ impl Jobs {
                 (Some(f), "failed")
             }
             Outcome::Stopped => match reason {
-                stop::CANCEL => (
+                Some(StopReason::Cancel) => (
                     Some(finish(
-                        "cancelled",
+                        JobState::Cancelled,
                         flags.progress(),
                         None,
                         None,
@@ -481,13 +482,13 @@ impl Jobs {
                     )),
                     "cancelled",
                 ),
-                stop::TIME_LIMIT => {
+                Some(StopReason::TimeLimit) => {
                     metrics::counter!(JOB_FAILURES, "operation" => row.operation.clone(), "reason" => "time_limit")
                         .increment(1);
                     let e = time_limit_problem(row.time_limit_ms);
                     (
                         Some(finish(
-                            "failed",
+                            JobState::Failed,
                             flags.progress(),
                             None,
                             None,
@@ -496,11 +497,11 @@ impl Jobs {
                         "time_limit",
                     )
                 }
-                stop::SHUTDOWN => {
+                Some(StopReason::Shutdown) => {
                     self.release(lease, true).await;
                     return "released";
                 }
-                _ => (None, "lease_lost"),
+                Some(StopReason::LeaseLost) | None => (None, "lease_lost"),
             },
             Outcome::Release => {
                 self.release(lease, true).await;
@@ -514,7 +515,7 @@ impl Jobs {
                         .increment(1);
                     (
                         Some(finish(
-                            "failed",
+                            JobState::Failed,
                             flags.progress(),
                             None,
                             None,
@@ -539,13 +540,13 @@ impl Jobs {
         };
         match self.db.finish(lease, &f).await {
             Ok(true) => {
-                if f.state == "succeeded" {
+                if f.state == JobState::Succeeded {
                     // Objects of earlier attempts that died before publishing.
                     if let Err(e) = self.results.remove_job(&row.id, Some(lease.attempt)).await {
                         tracing::warn!(job = %row.id, error = %e, "removing stale attempt objects failed");
                     }
                 }
-                tracing::info!(job = %row.id, state = f.state, attempt = lease.attempt, "job ended");
+                tracing::info!(job = %row.id, state = f.state.as_str(), attempt = lease.attempt, "job ended");
                 label
             }
             Ok(false) => {
@@ -571,19 +572,6 @@ impl Jobs {
             }
         }
     }
-}
-
-/// The problem of a job stopped at its time limit.
-pub fn time_limit_problem(limit_ms: i64) -> ApiError {
-    ApiError::of(
-        Kind::TimeLimit,
-        format!(
-            "the job ran past its time limit of {} s and was stopped; submit it again with a larger \
-             time_limit_secs or a smaller problem",
-            limit_ms as f64 / 1000.0
-        ),
-    )
-    .with_field("time_limit_secs")
 }
 
 /// How an attempt ended before it was written back.

@@ -353,7 +353,7 @@ pub async fn result(
         .get(&path.id)
         .await?
         .ok_or_else(|| job_not_found(&path.id))?;
-    if row.state != "succeeded" {
+    if row.state != JobState::Succeeded {
         return Err(ApiError::of(
             Kind::JobNotSucceeded,
             format!(
