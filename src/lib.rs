@@ -13,6 +13,15 @@
 //! * [`http`]: the axum router, problem+json errors, the OpenAPI contract.
 //! * [`app`], [`config`], [`telemetry`]: start-up, settings and logs.
 //! * [`cli`]: the `geodex` command (serve, distance, bench).
+//! * [`problem`]: RFC 9457 problem details and the one table of their kinds,
+//!   below both `http` and `jobs`.
+//! * [`runner`]: the one way an operation is run (validate, load inputs,
+//!   run on the pool with a deadline and cancellation).
+//!
+//! Everything but [`numerics`] and [`io`] is behind the default `server`
+//! feature: `geodex = { version = "0.1", default-features = false }` is the
+//! solvers and codecs alone, without axum, tokio, sqlx, object_store or
+//! utoipa.
 //!
 //! No `unsafe` outside `numerics/prefetch.rs`: the crate denies the
 //! `unsafe_code` lint here (and `Cargo.toml`'s `[lints]` for every target),
@@ -27,16 +36,28 @@
 // tests and benches; `clippy.toml` lets the unit tests unwrap.
 #![warn(clippy::unwrap_used)]
 
-pub mod app;
-pub mod cli;
-pub mod config;
-pub mod datasets;
-pub mod http;
 pub mod io;
-pub mod jobs;
 pub mod numerics;
+
+#[cfg(feature = "server")]
+pub mod app;
+#[cfg(feature = "server")]
+pub mod cli;
+#[cfg(feature = "server")]
+pub mod config;
+#[cfg(feature = "server")]
+pub mod datasets;
+#[cfg(feature = "server")]
+pub mod http;
+#[cfg(feature = "server")]
+pub mod jobs;
+#[cfg(feature = "server")]
 pub mod ops;
+#[cfg(feature = "server")]
 pub mod pool;
+#[cfg(feature = "server")]
 pub mod problem;
+#[cfg(feature = "server")]
 pub mod runner;
+#[cfg(feature = "server")]
 pub mod telemetry;

@@ -7,9 +7,8 @@ use ndarray::ArrayD;
 use crate::numerics::metric::CostValues;
 
 /// Element type of an [`ArrayData`].
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, utoipa::ToSchema,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "server", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum DType {
     /// Boolean (NPY `|b1`).

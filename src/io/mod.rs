@@ -48,9 +48,8 @@ pub use render::{render_png, Colormap, IsoLines, RenderOptions, RenderStyle};
 pub use tiff::encode_tiff_f32;
 
 /// A file format the codecs know.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, utoipa::ToSchema,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "server", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum Format {
     /// NumPy `.npy` (f32, f64, u8, u16, bool, i32, i64; 1D to 3D).

@@ -22,12 +22,12 @@ pub mod write;
 use std::collections::HashSet;
 
 use serde::{Deserialize, Serialize};
-use utoipa::ToSchema;
 
 use crate::numerics::mesh::{cross, norm, sub, MeshError, Topology, TriMesh};
 
 /// A mesh file format.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "server", derive(utoipa::ToSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum MeshFormat {
     /// Wavefront OBJ (`v` and `f` records; polygons triangulated).
@@ -207,7 +207,8 @@ impl MeshIoError {
 }
 
 /// What reading and repairing a mesh found: stored in the dataset metadata.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "server", derive(utoipa::ToSchema))]
 pub struct MeshReport {
     /// Vertices kept (after welding).
     pub vertices: usize,
