@@ -27,6 +27,8 @@ use std::sync::Arc;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
+use super::SpacingFlag;
+
 use super::run::{run_operation, CliInputs, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
@@ -82,14 +84,9 @@ pub struct DistanceArgs {
 /// itself: spacing, scheme, speed and obstacles.
 #[derive(Debug, Clone, Args)]
 pub struct SchemeFlags {
-    /// Physical size of a cell along each axis. Default: 1 (or the voxel size of a NIfTI cost).
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    /// Physical size of a cell along each axis.
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// The solver.
     #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
     pub method: MethodArg,
@@ -225,7 +222,7 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
     let request = GridDistanceRequest {
         cost,
         metric: tensor,
-        spacing: scheme.spacing.clone(),
+        spacing: scheme.spacing.spacing.clone(),
         obstacles: scheme.obstacles_id(),
         sources: point_sources(sources),
         method: scheme.method_spec(),

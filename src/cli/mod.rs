@@ -18,6 +18,20 @@ pub mod segment;
 pub mod mesh_distance;
 mod usage;
 
+/// `--spacing`, shared by every grid command.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SpacingFlag {
+    /// Physical size of a cell along each axis, axis 0 first. Default: 1 (or
+    /// the voxel size of a NIfTI input).
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+}
+
 /// geodex: geodesic distances, minimal paths and segmentations.
 #[derive(Debug, Parser)]
 #[command(

@@ -139,7 +139,7 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
     let request = GridPathsRequest {
         cost,
         metric: tensor,
-        spacing: scheme.spacing.clone(),
+        spacing: scheme.spacing.spacing.clone(),
         obstacles: scheme.obstacles_id(),
         sources: point_sources(sources),
         ends,

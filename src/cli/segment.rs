@@ -19,6 +19,8 @@ use std::sync::Arc;
 
 use clap::Args;
 
+use super::SpacingFlag;
+
 use super::run::{run_on, CliRunError};
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
@@ -56,14 +58,9 @@ pub struct EdtArgs {
     /// The mask: 2D or 3D, boolean or numbers (non-zero cells are the features).
     #[arg(long, value_name = "M.npy")]
     pub mask: PathBuf,
-    /// Physical size of a cell along each axis. Default: 1 (or the NIfTI voxel size).
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    /// Physical size of a cell along each axis.
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Signed distance: negative inside the mask.
     #[arg(long, conflicts_with = "multilabel")]
     pub signed: bool,
@@ -104,13 +101,8 @@ pub struct SegmentArgs {
     #[arg(long, value_name = "D")]
     pub max_distance: Option<f64>,
     /// Physical size of a cell along each axis.
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Where to write the labels (int32 NPY).
     #[arg(long, value_name = "L.npy")]
     pub out: PathBuf,
@@ -132,13 +124,8 @@ pub struct SkeletonArgs {
     #[arg(long, value_name = "M.npy")]
     pub mask: PathBuf,
     /// Physical size of a cell along each axis.
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Smallest boundary length between the two nearest boundary points of a branch.
     #[arg(long, default_value_t = 0.0, value_name = "L")]
     pub min_boundary_length: f64,
@@ -178,13 +165,8 @@ pub struct OffsetArgs {
     #[arg(long, value_name = "O.npy")]
     pub obstacles: Option<PathBuf>,
     /// Physical size of a cell along each axis.
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Where to write the offset shape (uint8 NPY).
     #[arg(long, value_name = "O.npy")]
     pub out: PathBuf,
@@ -216,13 +198,8 @@ pub struct PlanArgs {
     )]
     pub goal: Vec<f64>,
     /// Physical size of a cell along each axis.
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Where to write the answer (JSON); stdout when omitted.
     #[arg(long, value_name = "PATH.json")]
     pub out: Option<PathBuf>,
@@ -337,7 +314,7 @@ pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
     let id = read("--mask", &args.mask, &mut inputs)?;
     let request = GridEdtRequest {
         mask: id,
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
         mode: if args.signed {
             EdtMode::Signed
         } else if args.multilabel {
@@ -404,7 +381,7 @@ pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
     let request = GridSegmentRequest {
         cost: Some(cost),
         metric: None,
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
             None => None,
@@ -439,7 +416,7 @@ pub fn run_skeleton(args: &SkeletonArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
     let request = GridSkeletonRequest {
         mask: read("--mask", &args.mask, &mut inputs)?,
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
         min_boundary_length: args.min_boundary_length,
         min_boundary_fraction: args.min_boundary_fraction,
     };
@@ -488,7 +465,7 @@ pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
             None => None,
         },
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
     };
     let (out, secs) = execute(&request, &inputs, None)?;
     save(&out, "offset", "--out", &Some(args.out.clone()))?;
@@ -510,7 +487,7 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
         radius: args.radius,
         start: args.start.clone(),
         goal: args.goal.clone(),
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
     };
     let (out, _) = execute(&request, &inputs, None)?;
     match &args.out {
