@@ -11,13 +11,16 @@ use serde_json::Value;
 use super::parse::{parse_json, ParseError};
 use super::{DynOperation, OpError, OpLimits, Operation};
 
+/// Parses a request of one operation from JSON.
+pub type ParseFn = fn(&[u8]) -> Result<Box<dyn DynOperation>, ParseError>;
+
 /// One operation the service can run by name.
 #[derive(Debug, Clone, Copy)]
 pub struct Entry {
     /// [`Operation::NAME`].
     pub name: &'static str,
     /// Parses a request of this operation from JSON.
-    pub parse: fn(&[u8]) -> Result<Box<dyn DynOperation>, ParseError>,
+    pub parse: ParseFn,
 }
 
 /// A validated request.
