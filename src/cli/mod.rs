@@ -68,6 +68,8 @@ pub enum Command {
     Offset(segment::OffsetArgs),
     /// Collision-free path of a disc robot among obstacles.
     Plan(segment::PlanArgs),
+    /// Farthest-point sampling of a grid (samples, distance, Voronoi labels).
+    Sample(segment::SampleArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -87,6 +89,7 @@ pub fn main() -> ExitCode {
         Some(Command::Skeleton(args)) => segment::run_skeleton(&args).map_err(Into::into),
         Some(Command::Offset(args)) => segment::run_offset(&args).map_err(Into::into),
         Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
+        Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -1,5 +1,5 @@
-//! `geodex edt`, `segment`, `skeleton`, `offset` and `plan`: the segmentation
-//! operations on NPY files (or any format geodex reads) for batch users.
+//! `geodex edt`, `segment`, `skeleton`, `offset`, `plan` and `sample`: the
+//! segmentation and sampling operations on NPY files (or any format geodex reads) for batch users.
 //!
 //! Each command builds the request struct the HTTP service uses
 //! (`ops::grid_*`) and runs it with [`Operation::run`], so both accept and
@@ -11,6 +11,7 @@
 //! geodex skeleton --mask M.npy --out S.npy --graph G.json
 //! geodex offset --mask M.npy --radius 5 --out O.npy
 //! geodex plan --obstacles O.npy --radius 3 --start 10,5 --goal 50,55 --out path.json
+//! geodex sample --cost W.npy --count 500 --out U.npy --labels L.npy --samples S.json
 //! ```
 
 use std::collections::HashMap;
@@ -27,6 +28,7 @@ use crate::numerics::grid::MAX_CELLS;
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
+use crate::ops::grid_sample::GridSampleRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
@@ -205,6 +207,43 @@ pub struct PlanArgs {
     pub out: Option<PathBuf>,
 }
 
+/// Flags of `geodex sample`.
+#[derive(Debug, Clone, Args)]
+pub struct SampleArgs {
+    /// The metric W (cost per unit length), as in `geodex distance`.
+    #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
+    pub cost: Option<PathBuf>,
+    /// Grid shape for a unit cost, instead of --cost.
+    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    pub shape: Option<Vec<usize>>,
+    /// Number of samples.
+    #[arg(long, value_name = "K")]
+    pub count: Option<usize>,
+    /// Stop once every cell is within this distance of a sample.
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
+    pub radius: Option<f64>,
+    /// Obstacle mask (never sampled).
+    #[arg(long, value_name = "O.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Physical size of a cell along each axis.
+    #[arg(
+        long,
+        value_name = "H[,H..]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub spacing: Option<Vec<f64>>,
+    /// Where to write the distance to the nearest sample (f64 NPY).
+    #[arg(long, value_name = "U.npy")]
+    pub out: PathBuf,
+    /// Where to write the Voronoi labels (int32 NPY).
+    #[arg(long, value_name = "L.npy")]
+    pub labels: Option<PathBuf>,
+    /// Where to write the samples and statistics (JSON).
+    #[arg(long, value_name = "S.json")]
+    pub samples: Option<PathBuf>,
+}
+
 fn read(
     name: &str,
     path: &Path,
@@ -259,6 +298,7 @@ fn flag_of(field: &str) -> String {
         "radius" => "--radius".into(),
         "start" => "--start".into(),
         "goal" => "--goal".into(),
+        "count" => "--count".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
@@ -308,6 +348,31 @@ fn save(
     Ok(())
 }
 
+/// The `cost` of a request from `--cost W.npy` or `--shape N,M[,P]` (unit cost).
+fn cost_of(
+    cost: &Option<PathBuf>,
+    shape: &Option<Vec<usize>>,
+    inputs: &mut HashMap<String, InputArray>,
+) -> Result<CostSpec, SegmentCliError> {
+    Ok(match (cost, shape) {
+        (Some(p), _) => CostSpec {
+            dataset: Some(read("--cost", p, inputs)?),
+            constant: None,
+            shape: None,
+            interpretation: InterpretationSpec::Cost,
+            design: None,
+        },
+        (None, Some(s)) => CostSpec {
+            dataset: None,
+            constant: Some(1.0),
+            shape: Some(s.clone()),
+            interpretation: InterpretationSpec::Cost,
+            design: None,
+        },
+        (None, None) => return Err(flag("--cost", "give --cost or --shape")),
+    })
+}
+
 /// `geodex edt`.
 pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
@@ -340,23 +405,7 @@ pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
 /// `geodex segment`.
 pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
-    let cost = match (&args.cost, &args.shape) {
-        (Some(p), _) => CostSpec {
-            dataset: Some(read("--cost", p, &mut inputs)?),
-            constant: None,
-            shape: None,
-            interpretation: InterpretationSpec::Cost,
-            design: None,
-        },
-        (None, Some(s)) => CostSpec {
-            dataset: None,
-            constant: Some(1.0),
-            shape: Some(s.clone()),
-            interpretation: InterpretationSpec::Cost,
-            design: None,
-        },
-        (None, None) => return Err(flag("--cost", "give --cost or --shape")),
-    };
+    let cost = cost_of(&args.cost, &args.shape, &mut inputs)?;
     let mut seeds = Vec::new();
     for (i, s) in args.seeds.iter().enumerate() {
         let bad = || {
@@ -502,6 +551,36 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
         }
         None => println!("{}", out.document),
     }
+    Ok(())
+}
+
+/// `geodex sample`.
+pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let request = GridSampleRequest {
+        cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
+        spacing: args.spacing.clone(),
+        obstacles: match &args.obstacles {
+            Some(p) => Some(read("--obstacles", p, &mut inputs)?),
+            None => None,
+        },
+        count: args.count,
+        radius: args.radius,
+        seeds: Vec::new(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    save(&out, "distance", "--out", &Some(args.out.clone()))?;
+    save(&out, "labels", "--labels", &args.labels)?;
+    if let Some(p) = &args.samples {
+        write_json("--samples", p, &out.document)?;
+    }
+    println!(
+        "geodex: wrote {} ({} samples, covering radius {}, {:.3} s)",
+        args.out.display(),
+        out.document["stats"]["samples"],
+        out.document["stats"]["covering_radius"],
+        secs
+    );
     Ok(())
 }
 

@@ -29,6 +29,7 @@
 //! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 //! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
+//! * [`sampling`]: farthest-point sampling of grids with local fronts.
 
 pub mod anisotropic;
 pub mod contours;
@@ -45,6 +46,7 @@ pub mod metric_design;
 pub mod paths;
 pub mod planning;
 pub mod prefetch;
+pub mod sampling;
 pub mod segmentation;
 pub mod skeleton;
 

@@ -7,6 +7,7 @@
 //! * [`grid_distance`]: `grid.distance`, the eikonal distance map on a grid.
 //! * [`grid_edt`], [`grid_segment`], [`grid_skeleton`], [`grid_offset`], [`grid_plan`]: exact distance
 //!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
+//! * [`grid_sample`]: `grid.sample`, farthest-point sampling with geodesic Voronoi labels.
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 //! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
@@ -21,6 +22,7 @@ pub mod grid_metric;
 pub mod grid_offset;
 pub mod grid_paths;
 pub mod grid_plan;
+pub mod grid_sample;
 pub mod grid_segment;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;

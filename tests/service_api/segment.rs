@@ -1,4 +1,4 @@
-//! `POST /v1/grid/{edt,segment,skeleton,offset,plan}` over HTTP, and their 4xx.
+//! `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}` over HTTP, and their 4xx.
 
 use geodex::io::ArrayData;
 use ndarray::ArrayD;
@@ -281,4 +281,100 @@ async fn skeleton_offset_and_plan_over_http() {
     )
     .await;
     assert_eq!(v["field"], "start");
+}
+
+async fn npy_i32(app: &TestApp, reference: &serde_json::Value) -> Vec<i32> {
+    let url = format!(
+        "{}?format=npy",
+        reference["data_url"].as_str().expect("data_url")
+    );
+    let bytes = app.get(&url).await.bytes().await.expect("bytes");
+    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
+        .expect("decode")
+        .array
+    {
+        ArrayData::I32(a) => a.iter().copied().collect(),
+        other => panic!("{:?}", other.dtype()),
+    }
+}
+
+#[tokio::test]
+async fn sample_places_farthest_points_with_their_voronoi_cells() {
+    let app = spawn(|_| {}).await;
+    let cost = app
+        .upload(&ArrayData::F64(crate::common::wavy_cost(30, 24)))
+        .await;
+    let res = post(
+        &app,
+        "/v1/grid/sample",
+        json!({"cost": {"dataset": cost}, "count": 12, "seeds": [[3, 4]]}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let samples = body["samples"].as_array().expect("samples");
+    assert_eq!(samples.len(), 12);
+    assert_eq!(samples[0], json!([3, 4]));
+    assert_eq!(body["stats"]["samples"], 12);
+    assert_eq!(body["stats"]["stop"], "count");
+    let radii: Vec<f64> = body["stats"]["radii"]
+        .as_array()
+        .expect("radii")
+        .iter()
+        .map(|r| r.as_f64().expect("number"))
+        .collect();
+    assert_eq!(radii.len(), 12);
+    assert!(radii.windows(2).all(|w| w[1] <= w[0]), "{radii:?}");
+    assert_eq!(body["distance"]["shape"], json!([30, 24]));
+    let d = npy_f64(&app, &body["distance"]).await;
+    let l = npy_i32(&app, &body["labels"]).await;
+    let max = d.iter().copied().fold(0.0, f64::max);
+    assert_eq!(Some(max), body["stats"]["covering_radius"].as_f64());
+    assert_eq!(Some(max), radii.last().copied());
+    for (k, p) in samples.iter().enumerate() {
+        let i = p[0].as_u64().expect("i") as usize * 24 + p[1].as_u64().expect("j") as usize;
+        assert_eq!(d[i], 0.0);
+        assert_eq!(l[i], k as i32);
+    }
+    assert!(l.iter().all(|&v| (0..12).contains(&v)));
+    // The same request runs as a job (one registry line).
+    assert!(geodex::ops::registry::find("grid.sample").is_some());
+}
+
+#[tokio::test]
+async fn sample_refuses_bad_counts_and_seeds_naming_the_field() {
+    let app = spawn(|_| {}).await;
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/sample",
+            json!({"cost": {"constant": 1.0, "shape": [8, 8]}, "count": 65}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "count", "{v}");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/sample",
+            json!({"cost": {"constant": 1.0, "shape": [8, 8]}}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "count", "{v}");
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/sample",
+            json!({"cost": {"constant": 1.0, "shape": [8, 8]}, "radius": 2.0, "seeds": [[1, 1], [8, 0]]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "seeds[1]", "{v}");
 }

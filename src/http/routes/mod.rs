@@ -3,7 +3,7 @@
 //! * [`health`]: `/healthz`, `/readyz`, `/metrics`.
 //! * [`datasets`]: `/v1/datasets` upload, metadata, data, delete.
 //! * [`grid`]: `POST /v1/grid/distance`.
-//! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan}`.
+//! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.

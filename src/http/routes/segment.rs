@@ -1,5 +1,6 @@
 //! Segmentation endpoints on grids: `POST /v1/grid/edt`, `/v1/grid/segment`,
-//! `/v1/grid/skeleton`, `/v1/grid/offset`, `/v1/grid/plan`. Each is the
+//! `/v1/grid/skeleton`, `/v1/grid/offset`, `/v1/grid/plan`, and the
+//! farthest-point sampling `/v1/grid/sample`. Each is the
 //! generic synchronous path ([`crate::http::operation`]) over one request
 //! struct of [`crate::ops`]; the answer is the operation's JSON document with
 //! one dataset reference per output array.
@@ -18,6 +19,7 @@ use crate::http::AppState;
 use crate::ops::grid_edt::GridEdtRequest;
 use crate::ops::grid_offset::GridOffsetRequest;
 use crate::ops::grid_plan::GridPlanRequest;
+use crate::ops::grid_sample::GridSampleRequest;
 use crate::ops::grid_segment::GridSegmentRequest;
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::Operation;
@@ -262,4 +264,53 @@ pub async fn plan(
     ApiJson(request): ApiJson<GridPlanRequest>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     run(&state, request).await
+}
+
+/// Answer of `POST /v1/grid/sample`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SampleResponse {
+    /// Sample cells, index coordinates (axis 0 first), in the order placed (seeds first).
+    pub samples: Vec<Vec<usize>>,
+    /// Distance to the nearest sample (f64, +inf where not reached).
+    pub distance: DatasetRef,
+    /// Index of the nearest sample in `samples` (int32, -1 where not reached).
+    pub labels: DatasetRef,
+    /// `samples`, `covering_radius`, `radii` (the covering radius after each
+    /// sample), `stop` (`count`, `radius` or `exhausted`), `visited` (cells
+    /// recomputed by all the fronts), `seconds`, `queue_seconds`.
+    pub stats: serde_json::Value,
+}
+
+/// Farthest-point sampling of a grid.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/sample",
+    tag = "grid",
+    summary = "Farthest-point sampling with geodesic Voronoi cells",
+    description = "Places samples one at a time, each at the cell farthest (in the geodesic distance of \
+the cost W) from those already placed, until `count` samples are placed or every reachable cell is \
+within `radius` of one. Each new sample recomputes the distance only where it decreases (a local \
+first-order fast march), not on the whole grid. Optional `seeds` are the first samples. Points are \
+cells in array index order (axis 0 first); distances use the per-axis `spacing`. Returns the \
+samples, the distance to the nearest sample, the Voronoi labels and the covering radius after each sample.",
+    request_body = GridSampleRequest,
+    responses(
+        (status = 200, description = "The grid was sampled.", body = SampleResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn sample(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridSampleRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let doc = respond(&state, Box::new(request), Instant::now()).await?;
+    Ok(Json(serde_json::Value::Object(doc)))
 }

@@ -24,7 +24,9 @@ mod dijkstra;
 mod fast_marching;
 mod fast_sweeping;
 mod sources;
-mod update;
+// Crate-visible: farthest-point sampling (`numerics::sampling`) marches
+// its local fronts with the same update as the multi-source fast marching.
+pub(crate) mod update;
 
 pub use sources::{nearest_cell, target_cells, InitialFront, SeedCell, SeedPoint};
 

@@ -60,7 +60,7 @@ use crate::numerics::metric::IsotropicCost;
 
 /// Grid geometry, precomputed once per solve.
 #[derive(Debug, Clone)]
-pub(super) struct Stencil {
+pub(crate) struct Stencil {
     /// Padded shape.
     pub shape: [usize; 3],
     /// C-order strides of the padded shape.
@@ -188,7 +188,7 @@ impl FastDiv {
 
 /// Where the update reads the labels of known cells: the label array, or
 /// nothing at all when there is one source (every known cell has label 0).
-pub(super) trait Labels {
+pub(crate) trait Labels {
     /// The label of known cell `j`.
     fn at(&self, j: usize) -> i32;
 }
@@ -212,7 +212,7 @@ impl Labels for OneSource {
 
 /// A point source as seen by factoring.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct FactorPoint {
+pub(crate) struct FactorPoint {
     /// Padded index coordinates.
     p: [f64; 3],
     /// `W(p)`.
@@ -221,7 +221,7 @@ pub(super) struct FactorPoint {
 
 /// The point sources by label, for source factoring.
 #[derive(Debug, Clone)]
-pub(super) struct Factor {
+pub(crate) struct Factor {
     points: Vec<Option<FactorPoint>>,
 }
 
@@ -313,7 +313,7 @@ struct Term {
 /// or the value would not be finite. Never returns NaN.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub(super) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
+pub(crate) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     st: &Stencil,
     i: usize,
     idx: [usize; 3],

@@ -1,0 +1,202 @@
+//! `grid.sample`: farthest-point sampling of a grid under an isotropic cost
+//! (see [`crate::numerics::sampling::farthest`]): the samples, the distance
+//! to the nearest sample and the geodesic Voronoi labels.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::spec::cost::{resolve_cost, CostSpec};
+use super::spec::grid::{check_spacing, shaped};
+use super::spec::scheme::metric_dataset_ids;
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use crate::io::ArrayData;
+use crate::numerics::sampling::{
+    farthest_point_sampling, SamplingError, SamplingOptions, SamplingStop,
+};
+use crate::numerics::Control;
+
+/// Request of `grid.sample` (`POST /v1/grid/sample`, `geodex sample`). Give
+/// `count`, `radius` or both (sampling stops at the first reached).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({"cost": {"constant": 1.0, "shape": [256, 256]}, "count": 100}))]
+pub struct GridSampleRequest {
+    /// The isotropic metric, exactly as in `grid.distance`.
+    pub cost: CostSpec,
+    /// Physical size of a cell along each axis. Default: the cost dataset's, else 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 2, max_items = 3)]
+    pub spacing: Option<Vec<f64>>,
+    /// Id of a mask dataset whose non-zero cells are obstacles (never sampled).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacles: Option<String>,
+    /// Number of samples, seeds included (at most the number of cells).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub count: Option<usize>,
+    /// Stop once every reachable cell is within this geodesic distance of a sample.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
+    pub radius: Option<f64>,
+    /// Fixed first samples: cells in index coordinates (axis 0 first), kept
+    /// in this order. Default: none (the first sample is the cell farthest
+    /// from the first open cell).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub seeds: Vec<Vec<usize>>,
+}
+
+impl Operation for GridSampleRequest {
+    const NAME: &'static str = "grid.sample";
+
+    fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
+        self.cost.validate(limits)?;
+        check_spacing(&self.spacing)?;
+        let cells = self
+            .cost
+            .shape
+            .as_ref()
+            .map(|s| s.iter().product::<usize>());
+        match (self.count, self.radius) {
+            (None, None) => {
+                return Err(OpError::invalid("count", "give `count`, `radius` or both"))
+            }
+            (Some(0), _) => return Err(OpError::invalid("count", "must be >= 1")),
+            (Some(c), _) if c > limits.max_sources => {
+                return Err(OpError::TooLarge {
+                    field: "count".into(),
+                    reason: format!("more than {} samples", limits.max_sources),
+                })
+            }
+            (Some(c), _) if cells.is_some_and(|n| c > n) => {
+                return Err(OpError::invalid(
+                    "count",
+                    format!(
+                        "{c} is larger than the number of cells ({})",
+                        cells.unwrap_or(0)
+                    ),
+                ))
+            }
+            (Some(c), _) if c < self.seeds.len() => {
+                return Err(OpError::invalid(
+                    "count",
+                    format!(
+                        "{c} is smaller than the number of seeds ({})",
+                        self.seeds.len()
+                    ),
+                ))
+            }
+            _ => {}
+        }
+        if let Some(r) = self.radius {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(OpError::invalid(
+                    "radius",
+                    format!("{r} must be finite and > 0"),
+                ));
+            }
+        }
+        if self.seeds.len() > limits.max_sources {
+            return Err(OpError::TooLarge {
+                field: "seeds".into(),
+                reason: format!("more than {} seeds", limits.max_sources),
+            });
+        }
+        let ndim = self.cost.shape.as_ref().map(Vec::len);
+        for (i, seed) in self.seeds.iter().enumerate() {
+            if !(2..=3).contains(&seed.len()) || ndim.is_some_and(|d| d != seed.len()) {
+                return Err(OpError::invalid(
+                    format!("seeds[{i}]"),
+                    format!("a cell has 2 or 3 indices, one per axis of the grid; got {seed:?}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn dataset_ids(&self) -> Vec<(String, String)> {
+        let mut ids = metric_dataset_ids(Some(&self.cost), None);
+        if let Some(id) = &self.obstacles {
+            ids.push(("obstacles".to_string(), id.clone()));
+        }
+        ids
+    }
+
+    /// Arrays: `distance` (f64, to the nearest sample, +inf where not
+    /// reached), `labels` (int32, index of the nearest sample, -1 where not
+    /// reached). Document: `{"samples": [[i, j(, k)], ...], "stats":
+    /// {"samples", "covering_radius", "radii", "stop", "visited", "seconds"}}`.
+    fn run(
+        &self,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        self.validate(limits)?;
+        let resolved = resolve_cost(
+            &self.cost,
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+            inputs,
+            limits,
+            control,
+        )?;
+        let cost = resolved.isotropic()?;
+        let grid = &resolved.grid;
+        let started = Instant::now();
+        let options = SamplingOptions {
+            count: self.count,
+            radius: self.radius,
+            seeds: self.seeds.clone(),
+        };
+        let s = farthest_point_sampling(grid, &cost, &options, control).map_err(sampling_error)?;
+        let seconds = started.elapsed().as_secs_f64();
+        let spacing = Some(resolved.spacing.clone());
+        let document = serde_json::json!({
+            "samples": s.samples,
+            "stats": {
+                "samples": s.samples.len(),
+                "covering_radius": s.covering_radius,
+                "radii": s.radii,
+                "stop": match s.stop {
+                    SamplingStop::Count => "count",
+                    SamplingStop::Radius => "radius",
+                    SamplingStop::Exhausted => "exhausted",
+                },
+                "visited": s.visited,
+                "seconds": seconds,
+            },
+        });
+        Ok(OpOutput::new(
+            vec![
+                OutputArray {
+                    name: "distance".into(),
+                    array: ArrayData::F64(shaped(grid, s.distance)?),
+                    spacing: spacing.clone(),
+                },
+                OutputArray {
+                    name: "labels".into(),
+                    array: ArrayData::I32(shaped(grid, s.labels)?),
+                    spacing,
+                },
+            ],
+            document,
+        ))
+    }
+}
+
+/// A sampling error as an [`OpError`] naming the request field.
+fn sampling_error(e: SamplingError) -> OpError {
+    match e {
+        SamplingError::Cancelled => OpError::Cancelled,
+        SamplingError::Seed { index, reason } => {
+            OpError::invalid(format!("seeds[{index}]"), reason)
+        }
+        SamplingError::Radius(_) => OpError::invalid("radius", e.to_string()),
+        SamplingError::NoOpenCell => OpError::invalid("cost", e.to_string()),
+        SamplingError::NoStopRule
+        | SamplingError::Count { .. }
+        | SamplingError::FewerThanSeeds { .. } => OpError::invalid("count", e.to_string()),
+    }
+}
