@@ -226,13 +226,8 @@ pub struct SampleArgs {
     #[arg(long, value_name = "O.npy")]
     pub obstacles: Option<PathBuf>,
     /// Physical size of a cell along each axis.
-    #[arg(
-        long,
-        value_name = "H[,H..]",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub spacing: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
     /// Where to write the distance to the nearest sample (f64 NPY).
     #[arg(long, value_name = "U.npy")]
     pub out: PathBuf,
@@ -559,7 +554,7 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
     let request = GridSampleRequest {
         cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
-        spacing: args.spacing.clone(),
+        spacing: args.spacing.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
             None => None,
