@@ -70,6 +70,8 @@ pub enum Command {
     Plan(segment::PlanArgs),
     /// Farthest-point sampling of a grid (samples, distance, Voronoi labels).
     Sample(segment::SampleArgs),
+    /// Mesh an image: vertices placed by a metric, geodesic Delaunay triangles.
+    Mesh(segment::MeshArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -90,6 +92,7 @@ pub fn main() -> ExitCode {
         Some(Command::Offset(args)) => segment::run_offset(&args).map_err(Into::into),
         Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
         Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
+        Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -1,5 +1,5 @@
-//! `geodex edt`, `segment`, `skeleton`, `offset`, `plan` and `sample`: the
-//! segmentation and sampling operations on NPY files (or any format geodex reads) for batch users.
+//! `geodex edt`, `segment`, `skeleton`, `offset`, `plan`, `sample` and `mesh`: the
+//! segmentation, sampling and meshing operations on NPY files (or any format geodex reads) for batch users.
 //!
 //! Each command builds the request struct the HTTP service uses
 //! (`ops::grid_*`) and runs it with [`Operation::run`], so both accept and
@@ -12,6 +12,7 @@
 //! geodex offset --mask M.npy --radius 5 --out O.npy
 //! geodex plan --obstacles O.npy --radius 3 --start 10,5 --goal 50,55 --out path.json
 //! geodex sample --cost W.npy --count 500 --out U.npy --labels L.npy --samples S.json
+//! geodex mesh --image I.png --count 2000 --metric hessian --out M.ply --stats S.json
 //! ```
 
 use std::collections::HashMap;
@@ -23,9 +24,11 @@ use clap::Args;
 use super::SpacingFlag;
 
 use super::run::{run_on, CliRunError};
+use crate::io::mesh::write as mesh_write;
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
+use crate::ops::grid_mesh::{GridMeshRequest, MeshMetricSpec};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_sample::GridSampleRequest;
@@ -239,6 +242,52 @@ pub struct SampleArgs {
     pub samples: Option<PathBuf>,
 }
 
+/// The metric of `geodex mesh`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MeshMetricArg {
+    /// W = 1.
+    Uniform,
+    /// W from the gradient's magnitude.
+    Gradient,
+    /// W from the Hessian's norm.
+    Hessian,
+}
+
+/// Flags of `geodex mesh`.
+#[derive(Debug, Clone, Args)]
+pub struct MeshArgs {
+    /// The 2D image to mesh (NPY, PNG, TIFF, ...).
+    #[arg(long, value_name = "IMAGE")]
+    pub image: PathBuf,
+    /// Target number of vertices.
+    #[arg(long, value_name = "K")]
+    pub count: usize,
+    /// The metric the vertices follow.
+    #[arg(long, value_enum, default_value = "gradient")]
+    pub metric: MeshMetricArg,
+    /// Smoothing scale of the derivatives.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub sigma: f64,
+    /// Contrast of the metric (W in [1, 1 + strength]).
+    #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
+    pub strength: f64,
+    /// Skip the uniform mesh of the same vertex count.
+    #[arg(long)]
+    pub no_compare: bool,
+    /// Physical size of a cell along each axis.
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
+    /// Where to write the mesh: `.ply` (with the image value per vertex), `.obj` or `.json`.
+    #[arg(long, value_name = "MESH.ply")]
+    pub out: PathBuf,
+    /// Where to write the piecewise-linear approximation of the image (f64 NPY).
+    #[arg(long, value_name = "A.npy")]
+    pub approximation: Option<PathBuf>,
+    /// Where to write the statistics (JSON).
+    #[arg(long, value_name = "S.json")]
+    pub stats: Option<PathBuf>,
+}
+
 fn read(
     name: &str,
     path: &Path,
@@ -294,6 +343,7 @@ fn flag_of(field: &str) -> String {
         "start" => "--start".into(),
         "goal" => "--goal".into(),
         "count" => "--count".into(),
+        "dataset" => "--image".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
@@ -574,6 +624,78 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
         args.out.display(),
         out.document["stats"]["samples"],
         out.document["stats"]["covering_radius"],
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex mesh`.
+pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let request = GridMeshRequest {
+        dataset: read("--image", &args.image, &mut inputs)?,
+        count: args.count,
+        metric: match args.metric {
+            MeshMetricArg::Uniform => MeshMetricSpec::Uniform,
+            MeshMetricArg::Gradient => MeshMetricSpec::Gradient,
+            MeshMetricArg::Hessian => MeshMetricSpec::Hessian,
+        },
+        sigma: args.sigma,
+        strength: args.strength,
+        compare_uniform: !args.no_compare,
+        spacing: args.spacing.spacing.clone(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    let Some(mesh) = &out.mesh else {
+        return Err(flag("geodex", "the operation returned no mesh"));
+    };
+    let values: Vec<f64> = match array(&out, "values") {
+        Some(ArrayData::F64(a)) => a.iter().copied().collect(),
+        _ => Vec::new(),
+    };
+    let m = &mesh.mesh.mesh;
+    let ext = args
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("ply")
+        .to_ascii_lowercase();
+    let props = [mesh_write::VertexProperty::F64("value", &values)];
+    let bytes = match ext.as_str() {
+        "obj" => mesh_write::write_obj(m),
+        "json" => serde_json::to_vec(&mesh_write::write_json(m, &props))
+            .map_err(|e| flag("--out", e.to_string()))?,
+        "ply" => mesh_write::write_ply(m, &props),
+        other => {
+            return Err(flag(
+                "--out",
+                format!("unknown mesh extension '.{other}': use .ply, .obj or .json"),
+            ))
+        }
+    };
+    std::fs::write(&args.out, bytes).map_err(|e| {
+        flag(
+            "--out",
+            format!("cannot write '{}': {e}", args.out.display()),
+        )
+    })?;
+    save(
+        &out,
+        "approximation",
+        "--approximation",
+        &args.approximation,
+    )?;
+    if let Some(p) = &args.stats {
+        write_json("--stats", p, &out.document)?;
+    }
+    let stats = &out.document["stats"];
+    println!(
+        "geodex: wrote {} ({} vertices, {} triangles, L2 error {}, uniform {}, {:.3} s)",
+        args.out.display(),
+        stats["vertices"],
+        stats["triangles"],
+        stats["l2_error"],
+        stats["uniform"]["l2_error"],
         secs
     );
     Ok(())

@@ -29,7 +29,9 @@
 //! * [`metric_design`]: costs built from images (intensity, edges, Frangi vesselness).
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 //! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
-//! * [`sampling`]: farthest-point sampling of grids with local fronts.
+//! * [`sampling`]: farthest-point sampling of grids with local fronts, geodesic
+//!   Delaunay triangulations with their repair, Lloyd relaxation.
+//! * [`meshing`]: meshes made from a metric (image meshing).
 
 pub mod anisotropic;
 pub mod contours;
@@ -41,6 +43,7 @@ pub mod filters;
 pub mod grid;
 pub mod heap;
 pub mod mesh;
+pub mod meshing;
 pub mod metric;
 pub mod metric_design;
 pub mod paths;

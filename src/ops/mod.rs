@@ -8,6 +8,7 @@
 //! * [`grid_edt`], [`grid_segment`], [`grid_skeleton`], [`grid_offset`], [`grid_plan`]: exact distance
 //!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 //! * [`grid_sample`]: `grid.sample`, farthest-point sampling with geodesic Voronoi labels.
+//! * [`grid_mesh`]: `grid.mesh`, image meshing by geodesic Delaunay (a new mesh dataset).
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 //! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
@@ -18,6 +19,7 @@
 
 pub mod grid_distance;
 pub mod grid_edt;
+pub mod grid_mesh;
 pub mod grid_metric;
 pub mod grid_offset;
 pub mod grid_paths;

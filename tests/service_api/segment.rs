@@ -378,3 +378,105 @@ async fn sample_refuses_bad_counts_and_seeds_naming_the_field() {
     .await;
     assert_eq!(v["field"], "seeds[1]", "{v}");
 }
+
+#[tokio::test]
+async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
+    let app = spawn(|_| {}).await;
+    let (n0, n1) = (48usize, 40usize);
+    let image = ArrayD::from_shape_fn(ndarray::IxDyn(&[n0, n1]), |ix| {
+        let (r, c) = (ix[0] as f64 - 24.0, ix[1] as f64 - 20.0);
+        1.0 / (1.0 + ((r.hypot(c) - 12.0) / 1.5).exp())
+    });
+    let id = app.upload(&ArrayData::F64(image)).await;
+    let res = post(&app, "/v1/grid/mesh", json!({"dataset": id, "count": 80})).await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let stats = &body["stats"];
+    let nv = stats["vertices"].as_u64().expect("vertices") as usize;
+    let nt = stats["triangles"].as_u64().expect("triangles") as usize;
+    assert!(nv.abs_diff(80) <= 8, "{stats}");
+    assert!(
+        stats["uniform"]["vertices"]
+            .as_u64()
+            .expect("uniform")
+            .abs_diff(80)
+            <= 8,
+        "{stats}"
+    );
+    let (e, u) = (
+        stats["l2_error"].as_f64().expect("e"),
+        stats["uniform"]["l2_error"].as_f64().expect("u"),
+    );
+    assert!(e > 0.0 && e < u, "{stats}");
+    assert_eq!(body["approximation"]["shape"], json!([n0, n1]));
+    assert_eq!(body["triangles"]["shape"], json!([nt, 3]));
+    let approx = npy_f64(&app, &body["approximation"]).await;
+    assert!(approx
+        .iter()
+        .all(|v| v.is_finite() && (-1e-9..=1.0 + 1e-9).contains(v)));
+    // The mesh dataset downloads as JSON with the value per vertex, and as OBJ.
+    let url = body["mesh"]["data_url"]
+        .as_str()
+        .expect("mesh url")
+        .to_string();
+    let mesh: serde_json::Value = app
+        .get(&format!("{url}?format=json"))
+        .await
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(mesh["vertices"].as_array().expect("vertices").len(), nv);
+    assert_eq!(mesh["faces"].as_array().expect("faces").len(), nt);
+    assert_eq!(
+        mesh["properties"]["value"].as_array().expect("value").len(),
+        nv,
+        "{}",
+        mesh["properties"]
+    );
+    let obj = app
+        .get(&format!("{url}?format=obj"))
+        .await
+        .text()
+        .await
+        .expect("obj");
+    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), nt);
+    // The same request runs as a job (one registry line).
+    assert!(geodex::ops::registry::find("grid.mesh").is_some());
+}
+
+#[tokio::test]
+async fn mesh_refuses_bad_counts_and_images_naming_the_field() {
+    let app = spawn(|_| {}).await;
+    let id = app
+        .upload(&ArrayData::F64(ArrayD::zeros(ndarray::IxDyn(&[8, 8]))))
+        .await;
+    for (body, field) in [
+        (json!({"dataset": id, "count": 65}), "count"),
+        (json!({"dataset": id, "count": 3}), "count"),
+        (
+            json!({"dataset": id, "count": 10, "strength": -1.0}),
+            "strength",
+        ),
+        (
+            json!({"dataset": id, "count": 10, "spacing": [1.0, 0.0]}),
+            "spacing[1]",
+        ),
+    ] {
+        let v = problem(post(&app, "/v1/grid/mesh", body).await, 422).await;
+        assert_eq!(v["field"], field, "{v}");
+    }
+    let volume = app
+        .upload(&ArrayData::F64(ArrayD::zeros(ndarray::IxDyn(&[4, 4, 4]))))
+        .await;
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/mesh",
+            json!({"dataset": volume, "count": 10}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "dataset", "{v}");
+}

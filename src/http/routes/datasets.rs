@@ -501,6 +501,9 @@ async fn mesh_data(
                 if let Some(l) = &extra.label {
                     props.push(write::VertexProperty::I32("label", l));
                 }
+                if let Some(v) = &extra.value {
+                    props.push(write::VertexProperty::F64("value", v));
+                }
                 let json = write::write_json(&loaded.mesh, &props);
                 Ok((serde_json::to_vec(&json).map_err(ApiError::internal)?, "application/json"))
             })

@@ -1,6 +1,7 @@
 //! Segmentation endpoints on grids: `POST /v1/grid/edt`, `/v1/grid/segment`,
 //! `/v1/grid/skeleton`, `/v1/grid/offset`, `/v1/grid/plan`, and the
-//! farthest-point sampling `/v1/grid/sample`. Each is the
+//! farthest-point sampling `/v1/grid/sample` and image meshing
+//! `/v1/grid/mesh`. Each is the
 //! generic synchronous path ([`crate::http::operation`]) over one request
 //! struct of [`crate::ops`]; the answer is the operation's JSON document with
 //! one dataset reference per output array.
@@ -17,6 +18,7 @@ use crate::http::extract::ApiJson;
 use crate::http::operation::respond;
 use crate::http::AppState;
 use crate::ops::grid_edt::GridEdtRequest;
+use crate::ops::grid_mesh::GridMeshRequest;
 use crate::ops::grid_offset::GridOffsetRequest;
 use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_sample::GridSampleRequest;
@@ -313,4 +315,61 @@ pub async fn sample(
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let doc = respond(&state, Box::new(request), Instant::now()).await?;
     Ok(Json(serde_json::Value::Object(doc)))
+}
+
+/// Answer of `POST /v1/grid/mesh`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct GridMeshResponse {
+    /// The mesh (a mesh dataset: vertices in index coordinates with `z = 0`,
+    /// the image value per vertex as the `value` property; download it as
+    /// PLY, OBJ or JSON).
+    pub mesh: DatasetRef,
+    /// The piecewise-linear approximation of the image on the mesh (f64, the image's shape).
+    pub approximation: DatasetRef,
+    /// The metric `W` the vertices followed (f64, the image's shape).
+    pub cost: DatasetRef,
+    /// The vertices (f64, `nv × 2`, index coordinates, axis 0 first).
+    pub vertices: DatasetRef,
+    /// The triangles (int32, `nt × 3`, counter-clockwise in the (axis 0, axis 1) plane).
+    pub triangles: DatasetRef,
+    /// `vertices`, `triangles`, `l2_error` (root mean square of image minus
+    /// approximation), `added` (vertices the Delaunay repair added),
+    /// `repaired` (defects by kind), `covering_radius`, `seconds`, and with
+    /// `compare_uniform` the uniform mesh's `uniform: {vertices, triangles,
+    /// l2_error, added}` and `error_ratio` (adapted over uniform).
+    pub stats: serde_json::Value,
+}
+
+/// Image meshing by geodesic Delaunay triangulation.
+#[utoipa::path(
+    post,
+    path = "/v1/grid/mesh",
+    tag = "grid",
+    summary = "Mesh an image: vertices placed by a metric, geodesic Delaunay triangles",
+    description = "Derives a metric from the image (`gradient`: W = 1 + strength |grad f| / max, \
+`hessian`: the same with the Hessian's norm, `uniform`: W = 1), places `count` vertices by \
+farthest-point sampling under it (the four corners first), and triangulates them by the dual of \
+their geodesic Voronoi cells, repaired (samples added and counted) until it is a valid \
+triangulation covering the image. Returns the mesh as a mesh dataset (index coordinates, axis 0 \
+first), the piecewise-linear approximation of the image on it, its L2 error, and by default the \
+error of a uniform mesh with the same vertex count.",
+    request_body = GridMeshRequest,
+    responses(
+        (status = 200, description = "The image was meshed.", body = GridMeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn mesh(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<GridMeshRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
 }

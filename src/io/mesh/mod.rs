@@ -339,22 +339,12 @@ impl RawMesh {
         }
         let mesh = TriMesh::new(self.positions, faces)?;
         let topology = Topology::new(&mesh);
-        let isolated = (0..mesh.num_vertices())
-            .filter(|&v| topology.faces_of(v as u32).is_empty())
-            .count();
         let report = MeshReport {
-            vertices: mesh.num_vertices(),
-            faces: mesh.num_faces(),
             input_faces,
             welded_vertices: self.welded,
             degenerate_faces: degenerate,
             duplicate_faces: duplicate,
-            boundary_edges: topology.boundary_edges,
-            boundary_loops: boundary_loops(&mesh, &topology),
-            non_manifold_edges: topology.non_manifold_edges,
-            misoriented_edges: topology.misoriented_edges,
-            components: topology.components - isolated,
-            isolated_vertices: isolated,
+            ..report_of(&mesh, &topology)
         };
         Ok(LoadedMesh {
             mesh,
@@ -362,6 +352,28 @@ impl RawMesh {
             report,
             format,
         })
+    }
+}
+
+/// The report of a mesh built in memory (nothing welded or dropped): its
+/// counts, boundary loops, non-manifold and misoriented edges, components.
+pub fn report_of(mesh: &TriMesh, topology: &Topology) -> MeshReport {
+    let isolated = (0..mesh.num_vertices())
+        .filter(|&v| topology.faces_of(v as u32).is_empty())
+        .count();
+    MeshReport {
+        vertices: mesh.num_vertices(),
+        faces: mesh.num_faces(),
+        input_faces: mesh.num_faces(),
+        welded_vertices: 0,
+        degenerate_faces: 0,
+        duplicate_faces: 0,
+        boundary_edges: topology.boundary_edges,
+        boundary_loops: boundary_loops(mesh, topology),
+        non_manifold_edges: topology.non_manifold_edges,
+        misoriented_edges: topology.misoriented_edges,
+        components: topology.components - isolated,
+        isolated_vertices: isolated,
     }
 }
 

@@ -20,6 +20,7 @@ struct Record {
     indices: Vec<i64>,
     distance: Option<f64>,
     label: Option<f64>,
+    value: Option<f64>,
     bad: bool,
 }
 
@@ -65,6 +66,7 @@ impl PropertyAccess for Record {
             }
             "distance" => self.distance = scalar(&p),
             "label" => self.label = scalar(&p),
+            "value" => self.value = scalar(&p),
             "vertex_indices" | "vertex_index" => match list(p) {
                 Some(v) => self.indices = v,
                 None => self.bad = true,
@@ -82,9 +84,11 @@ pub struct VertexValues {
     pub distance: Option<Vec<f64>>,
     /// The `label` property.
     pub label: Option<Vec<i32>>,
+    /// The `value` property (an image mesh's value per vertex).
+    pub value: Option<Vec<f64>>,
 }
 
-/// Reads the per-vertex `distance` and `label` of a PLY file.
+/// Reads the per-vertex `distance`, `label` and `value` of a PLY file.
 pub fn vertex_values(bytes: &[u8]) -> Result<VertexValues, MeshIoError> {
     Ok(parse(bytes, &MeshLimits::default())?.1)
 }
@@ -151,6 +155,9 @@ fn parse(bytes: &[u8], limits: &MeshLimits) -> Result<(RawMesh, VertexValues), M
                             .map(|r| r.distance.unwrap_or(f64::NAN))
                             .collect(),
                     );
+                }
+                if vdef.properties.contains_key("value") {
+                    values.value = Some(recs.iter().map(|r| r.value.unwrap_or(f64::NAN)).collect());
                 }
                 if vdef.properties.contains_key("label") {
                     values.label = Some(

@@ -291,8 +291,9 @@ fn check_options(options: &SamplingOptions, cells: usize) -> Result<(), Sampling
 }
 
 /// The working state: `U`, labels, the band of the current front and the
-/// heap of the farthest cells.
-struct Sampler<'a> {
+/// heap of the farthest cells. Crate-visible so that the geodesic Delaunay
+/// repair and Lloyd relaxation add samples with the same local fronts.
+pub(crate) struct Sampler<'a> {
     st: Stencil,
     cost: &'a IsotropicCost<'a>,
     /// Distance to the samples so far (`+inf` where not reached).
@@ -311,7 +312,7 @@ struct Sampler<'a> {
 }
 
 impl<'a> Sampler<'a> {
-    fn new(grid: &Grid, cost: &'a IsotropicCost<'a>) -> Self {
+    pub(crate) fn new(grid: &Grid, cost: &'a IsotropicCost<'a>) -> Self {
         let n = grid.len();
         let mut band = IndexedHeap::new(n);
         if !cost.is_uniform() {
@@ -334,8 +335,41 @@ impl<'a> Sampler<'a> {
         }
     }
 
+    /// Resumes from a finished sampling's distance and labels (of `grid`'s size).
+    pub(crate) fn resume(
+        grid: &Grid,
+        cost: &'a IsotropicCost<'a>,
+        distance: Vec<f64>,
+        labels: Vec<i32>,
+    ) -> Self {
+        let mut s = Self::new(grid, cost);
+        for (i, &u) in distance.iter().enumerate() {
+            if u < f64::INFINITY {
+                s.far.push(i as u32, -u);
+            }
+        }
+        s.u = distance;
+        s.labels = labels;
+        s
+    }
+
+    /// `U` per cell.
+    pub(crate) fn distance(&self) -> &[f64] {
+        &self.u
+    }
+
+    /// Labels per cell.
+    pub(crate) fn labels(&self) -> &[i32] {
+        &self.labels
+    }
+
+    /// Hands back `U` and the labels.
+    pub(crate) fn into_parts(self) -> (Vec<f64>, Vec<i32>, usize) {
+        (self.u, self.labels, self.visited)
+    }
+
     /// The largest finite `U` (0 before any sample).
-    fn covering_radius(&self) -> f64 {
+    pub(crate) fn covering_radius(&self) -> f64 {
         self.far.peek().map_or(0.0, |(_, k)| -k)
     }
 
@@ -345,7 +379,7 @@ impl<'a> Sampler<'a> {
     }
 
     /// Forgets every sample.
-    fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.u.fill(f64::INFINITY);
         self.labels.fill(-1);
         self.far.clear();
@@ -353,7 +387,12 @@ impl<'a> Sampler<'a> {
 
     /// Adds the sample `s` (an open cell with `U(s) > 0`) with label `label`:
     /// a fast march from `s` restricted to the cells whose value it lowers.
-    fn add(&mut self, s: usize, label: i32, control: &Control<'_>) -> Result<(), SamplingError> {
+    pub(crate) fn add(
+        &mut self,
+        s: usize,
+        label: i32,
+        control: &Control<'_>,
+    ) -> Result<(), SamplingError> {
         self.band.push(s as u32, 0.0);
         self.band_label[s] = label;
         let (shape, strides) = (self.st.shape, self.st.strides);

@@ -3,8 +3,15 @@
 //! * [`farthest`]: farthest-point sampling of a 2D or 3D grid under an
 //!   isotropic cost, with local fronts (only the cells that get closer to a
 //!   new sample are recomputed), optional fixed seeds, a count or a radius.
+//! * [`delaunay`]: geodesic Voronoi adjacency and vertices, the dual
+//!   (geodesic Delaunay) triangulation and the repair of its failure modes.
+//! * [`lloyd`]: geodesic Lloyd (centroidal Voronoi) relaxation.
+//! * [`triangulation`]: the validity checker of planar triangulations.
 
+pub mod delaunay;
 pub mod farthest;
+pub mod lloyd;
+pub mod triangulation;
 
 pub use farthest::{
     farthest_point_sampling, GridSampling, SamplingError, SamplingOptions, SamplingStop,

@@ -1,0 +1,314 @@
+//! Image meshing (the monograph's section 4.3; Bougleux, Peyré and Cohen,
+//! "Anisotropic geodesics for perceptual grouping and domain meshing", 2008).
+//!
+//! # Math
+//!
+//! An image `f` on a 2D grid gets an isotropic metric that is large where
+//! `f` varies:
+//!
+//! ```text
+//! W(x) = 1 + α · q(x) / max q,   q = |∇(G_σ * f)|   (gradient)
+//!                                q = ‖H(G_σ * f)‖_F (Hessian)
+//! ```
+//!
+//! Farthest-point sampling under `W` places about `∝ W²` samples per unit
+//! area (the covering radius is uniform in the metric), so vertices gather
+//! along edges (gradient) or where the image bends (Hessian, the term that
+//! bounds the linear interpolation error `|f − f̃| ≤ ‖H‖ h² / 2`). The
+//! vertices are triangulated by the conforming geodesic Delaunay dual
+//! ([`crate::numerics::sampling::delaunay`]: corners and border samples
+//! included, so the triangles tile the rectangle `[0, n0−1] × [0, n1−1]`),
+//! and `f̃` is the linear interpolation of the vertex values `f(s_i)` on
+//! each triangle (barycentric coordinates). The error reported is the root
+//! mean square `‖f − f̃‖₂ = (Σ_x (f − f̃)² / n)^{1/2}` over the grid cells.
+//!
+//! The uniform metric (`W = 1`) gives the mesh of the same vertex count to
+//! compare with.
+
+use std::borrow::Cow;
+
+use crate::numerics::control::Control;
+use crate::numerics::filters::{self, FilterError};
+use crate::numerics::grid::Grid;
+use crate::numerics::metric::{CostValues, Interpretation, IsotropicCost, MetricError};
+use crate::numerics::sampling::delaunay::{
+    geodesic_delaunay, DelaunayError, DelaunayOptions, RepairCounts,
+};
+use crate::numerics::sampling::{farthest_point_sampling, SamplingError, SamplingOptions};
+
+/// The metric derived from the image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ImageMetric {
+    /// `W = 1`: a uniform mesh.
+    Uniform,
+    /// `W = 1 + α |∇(G_σ * f)| / max`.
+    Gradient {
+        /// Smoothing scale `σ` (physical units), `>= 0`.
+        sigma: f64,
+        /// Contrast `α >= 0`: the ratio of the largest to the smallest `W`, minus 1.
+        strength: f64,
+    },
+    /// `W = 1 + α ‖H(G_σ * f)‖_F / max`.
+    Hessian {
+        /// Smoothing scale `σ` (physical units), `>= 0`.
+        sigma: f64,
+        /// Contrast `α >= 0`.
+        strength: f64,
+    },
+}
+
+/// Options of [`mesh_image`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageMeshOptions {
+    /// Target number of vertices (at least 4: the corners).
+    pub count: usize,
+    /// The metric.
+    pub metric: ImageMetric,
+}
+
+/// A mesh of an image and the image's approximation on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageMesh {
+    /// Vertices in index coordinates (axis 0 first): grid cells.
+    pub points: Vec<[f64; 2]>,
+    /// Triangles, counter-clockwise in the (axis 0, axis 1) plane.
+    pub triangles: Vec<[u32; 3]>,
+    /// The image at each vertex.
+    pub values: Vec<f64>,
+    /// The piecewise-linear approximation `f̃` per grid cell (C order).
+    pub approximation: Vec<f64>,
+    /// `‖f − f̃‖₂` (root mean square over the grid cells).
+    pub l2_error: f64,
+    /// The metric `W` per grid cell.
+    pub cost: Vec<f64>,
+    /// Samples the Delaunay repair added (to the sampling's count).
+    pub added: usize,
+    /// Defects repaired, by kind.
+    pub repaired: RepairCounts,
+    /// The covering radius of the samples in the metric.
+    pub covering_radius: f64,
+}
+
+/// Why an image could not be meshed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshingError {
+    /// The grid is not 2D.
+    #[error("image meshing is defined on 2D grids; this grid has {0} axes")]
+    NotPlanar(usize),
+    /// The image does not match the grid, or has a non-finite value.
+    #[error("{0}")]
+    Image(String),
+    /// The count is below 4 or above the number of cells.
+    #[error("count {count} must be between 4 and the number of cells ({cells})")]
+    Count {
+        /// The count given.
+        count: usize,
+        /// Cells of the grid.
+        cells: usize,
+    },
+    /// A metric parameter is out of range.
+    #[error("{0}")]
+    Metric(String),
+    /// Sampling failed.
+    #[error(transparent)]
+    Sampling(#[from] SamplingError),
+    /// The triangulation could not be repaired.
+    #[error(transparent)]
+    Delaunay(#[from] DelaunayError),
+    /// The caller raised the cancel flag.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+impl From<FilterError> for MeshingError {
+    fn from(e: FilterError) -> Self {
+        match e {
+            FilterError::Cancelled => MeshingError::Cancelled,
+            other => MeshingError::Metric(other.to_string()),
+        }
+    }
+}
+
+impl From<MetricError> for MeshingError {
+    fn from(e: MetricError) -> Self {
+        MeshingError::Metric(e.to_string())
+    }
+}
+
+/// The metric `W` of `image` (see the module docs), one value per cell.
+pub fn image_cost(
+    grid: &Grid,
+    image: &[f64],
+    metric: ImageMetric,
+    control: &Control<'_>,
+) -> Result<Vec<f64>, MeshingError> {
+    let (sigma, strength, hessian) = match metric {
+        ImageMetric::Uniform => return Ok(vec![1.0; grid.len()]),
+        ImageMetric::Gradient { sigma, strength } => (sigma, strength, false),
+        ImageMetric::Hessian { sigma, strength } => (sigma, strength, true),
+    };
+    if !(strength.is_finite() && strength >= 0.0) {
+        return Err(MeshingError::Metric(format!(
+            "strength {strength} must be finite and >= 0"
+        )));
+    }
+    let smooth = filters::gaussian_smooth(grid, image, sigma, control)?;
+    let q: Vec<f64> = if hessian {
+        filters::hessian(grid, &smooth, control)?
+            .iter()
+            .map(|h| (h[1] * h[1] + h[2] * h[2] + 2.0 * h[5] * h[5]).sqrt())
+            .collect()
+    } else {
+        filters::gradient(grid, &smooth, control)?
+            .iter()
+            .map(|g| (g[1] * g[1] + g[2] * g[2]).sqrt())
+            .collect()
+    };
+    let max = q.iter().copied().fold(0.0, f64::max);
+    if max <= 0.0 {
+        return Ok(vec![1.0; grid.len()]);
+    }
+    Ok(q.iter().map(|v| 1.0 + strength * v / max).collect())
+}
+
+/// Meshes `image` (one value per cell of the 2D `grid`, C order) with about
+/// `options.count` vertices; see the module docs. The repair of the
+/// triangulation adds border samples; the sampling is run a second time
+/// with fewer samples when it did, so that the vertex count is close to the
+/// target.
+///
+/// Polls `control` throughout (filters, sampling, repair).
+pub fn mesh_image(
+    grid: &Grid,
+    image: &[f64],
+    options: &ImageMeshOptions,
+    control: &Control<'_>,
+) -> Result<ImageMesh, MeshingError> {
+    if grid.ndim() != 2 {
+        return Err(MeshingError::NotPlanar(grid.ndim()));
+    }
+    let n = grid.len();
+    if image.len() != n {
+        return Err(MeshingError::Image(format!(
+            "{} values for a grid of {n} cells",
+            image.len()
+        )));
+    }
+    if let Some(i) = image.iter().position(|v| !v.is_finite()) {
+        return Err(MeshingError::Image(format!("value {i} is not finite")));
+    }
+    if options.count < 4 || options.count > n {
+        return Err(MeshingError::Count {
+            count: options.count,
+            cells: n,
+        });
+    }
+    let [_, n0, n1] = grid.shape3();
+    let w = image_cost(grid, image, options.metric, control)?;
+    let cost = IsotropicCost::new(
+        grid,
+        CostValues::F64(Cow::Borrowed(&w)),
+        Interpretation::Cost,
+        None,
+    )?;
+    let corners = vec![
+        vec![0, 0],
+        vec![0, n1 - 1],
+        vec![n0 - 1, 0],
+        vec![n0 - 1, n1 - 1],
+    ];
+    let run = |count: usize| {
+        let sampling = farthest_point_sampling(
+            grid,
+            &cost,
+            &SamplingOptions {
+                count: Some(count.max(4)),
+                radius: None,
+                seeds: corners.clone(),
+            },
+            control,
+        )?;
+        let options = DelaunayOptions {
+            conforming: true,
+            max_added: None,
+        };
+        Ok::<_, MeshingError>(geodesic_delaunay(grid, &cost, sampling, &options, control)?)
+    };
+    let mut d = run(options.count)?;
+    if d.added > 0 && options.count > 4 + d.added {
+        let second = run(options.count - d.added)?;
+        let off = |x: usize| x.abs_diff(options.count);
+        if off(second.points.len()) < off(d.points.len()) {
+            d = second;
+        }
+    }
+    let values: Vec<f64> = d
+        .points
+        .iter()
+        .map(|p| image[p[0] as usize * n1 + p[1] as usize])
+        .collect();
+    let approximation = piecewise_linear([n0, n1], &d.points, &d.dual.triangles, &values);
+    let sq: f64 = image
+        .iter()
+        .zip(&approximation)
+        .map(|(f, g)| {
+            if g.is_finite() {
+                (f - g).powi(2)
+            } else {
+                f * f
+            }
+        })
+        .sum();
+    Ok(ImageMesh {
+        l2_error: (sq / n as f64).sqrt(),
+        covering_radius: d.sampling.covering_radius,
+        added: d.added,
+        repaired: d.repaired,
+        points: d.points,
+        triangles: d.dual.triangles,
+        values,
+        approximation,
+        cost: w,
+    })
+}
+
+/// The piecewise-linear interpolation of `values` (one per point) on the
+/// triangles, at every cell of a grid of `shape` (C order); NaN at cells no
+/// triangle covers. A cell on a shared edge takes the first triangle's value
+/// (both agree there).
+pub fn piecewise_linear(
+    shape: [usize; 2],
+    points: &[[f64; 2]],
+    triangles: &[[u32; 3]],
+    values: &[f64],
+) -> Vec<f64> {
+    let [n0, n1] = shape;
+    let mut out = vec![f64::NAN; n0 * n1];
+    for t in triangles {
+        let [a, b, c] = t.map(|v| points[v as usize]);
+        let [fa, fb, fc] = t.map(|v| values[v as usize]);
+        let det = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let lo = |k: usize| a[k].min(b[k]).min(c[k]).ceil().max(0.0) as usize;
+        let hi = |k: usize, n: usize| (a[k].max(b[k]).max(c[k]).floor() as usize).min(n - 1);
+        for r in lo(0)..=hi(0, n0) {
+            for col in lo(1)..=hi(1, n1) {
+                let (x, y) = (r as f64, col as f64);
+                // Barycentric coordinates of (x, y).
+                let lb = ((x - a[0]) * (c[1] - a[1]) - (y - a[1]) * (c[0] - a[0])) / det;
+                let lc = ((b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0])) / det;
+                let la = 1.0 - lb - lc;
+                let eps = -1e-9;
+                if la >= eps && lb >= eps && lc >= eps {
+                    let slot = &mut out[r * n1 + col];
+                    if slot.is_nan() {
+                        *slot = la * fa + lb * fb + lc * fc;
+                    }
+                }
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,14 @@
+//! Meshes made from a metric (the monograph's chapter 4): the metric decides
+//! where the vertices go (farthest-point sampling), the geodesic Voronoi
+//! cells which vertices are neighbours (the geodesic Delaunay dual of
+//! [`crate::numerics::sampling::delaunay`]).
+//!
+//! * [`image`]: image meshing (section 4.3, Bougleux, Peyré and Cohen): a
+//!   metric from the image, its triangulation, the piecewise-linear
+//!   approximation of the image on it and its L2 error.
+
+pub mod image;
+
+pub use image::{
+    mesh_image, piecewise_linear, ImageMesh, ImageMeshOptions, ImageMetric, MeshingError,
+};
