@@ -70,7 +70,7 @@ fn sorted(t: [u32; 3]) -> [u32; 3] {
 /// A deterministic generator in [0, 1).
 struct Lcg(u64);
 impl Lcg {
-    fn next(&mut self) -> f64 {
+    fn uniform(&mut self) -> f64 {
         self.0 = self
             .0
             .wrapping_mul(6364136223846793005)
@@ -141,10 +141,10 @@ fn on_a_constant_metric_it_is_the_euclidean_delaunay_triangulation() {
     while r < n0 as f64 - 3.0 {
         let mut c = 3.0 + if row % 2 == 1 { step / 2.0 } else { 0.0 };
         while c < n1 as f64 - 3.0 {
-            let i = (r + 3.0 * (rng.next() - 0.5))
+            let i = (r + 3.0 * (rng.uniform() - 0.5))
                 .round()
                 .clamp(0.0, n0 as f64 - 1.0) as usize;
-            let j = (c + 3.0 * (rng.next() - 0.5))
+            let j = (c + 3.0 * (rng.uniform() - 0.5))
                 .round()
                 .clamp(0.0, n1 as f64 - 1.0) as usize;
             seeds.push(vec![i, j]);

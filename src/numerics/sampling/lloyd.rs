@@ -118,9 +118,8 @@ pub fn lloyd(
         for (i, &l) in labels.iter().enumerate() {
             if l >= 0 {
                 let idx = grid.unravel(i);
-                let s = &mut sum[l as usize];
-                for k in 0..3 {
-                    s[k] += idx[k] as f64;
+                for (s, &x) in sum[l as usize].iter_mut().zip(&idx) {
+                    *s += x as f64;
                 }
                 count[l as usize] += 1;
             }

@@ -217,10 +217,8 @@ fn overlaps(
     let mut size = 0.0;
     for &t in good {
         let (l, h) = bbox(t);
-        for k in 0..2 {
-            lo[k] = lo[k].min(l[k]);
-            hi[k] = hi[k].max(h[k]);
-        }
+        lo = [lo[0].min(l[0]), lo[1].min(l[1])];
+        hi = [hi[0].max(h[0]), hi[1].max(h[1])];
         size += (h[0] - l[0]).max(h[1] - l[1]);
     }
     let cell = (size / good.len() as f64).max(1e-12);
