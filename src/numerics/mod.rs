@@ -30,6 +30,7 @@
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 //! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
 //! * [`sampling`]: farthest-point sampling of grids with local fronts.
+//! * [`shading`]: shape from shading (a Lambertian surface's height from its image) by fast marching.
 
 pub mod anisotropic;
 pub mod contours;
@@ -48,6 +49,7 @@ pub mod planning;
 pub mod prefetch;
 pub mod sampling;
 pub mod segmentation;
+pub mod shading;
 pub mod skeleton;
 
 pub use control::Control;
