@@ -499,11 +499,7 @@ mod tests {
     #[test]
     fn singular_point_of_a_convex_bump_anchors_it_from_the_top() {
         let s = scene(129, |x, y| gaussian(x, y, 0.0, 0.0, 0.6, 0.45));
-        let top = s
-            .height
-            .iter()
-            .cloned()
-            .fold(f64::NEG_INFINITY, f64::max);
+        let top = s.height.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         let anchors = singular_cells(&s.image, 1.0, 1e-9)
             .into_iter()
             // The flat ground far from the bump is singular too: keep the
