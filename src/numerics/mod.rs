@@ -32,6 +32,7 @@
 //! * [`sampling`]: farthest-point sampling of grids with local fronts, geodesic
 //!   Delaunay triangulations with their repair, Lloyd relaxation.
 //! * [`meshing`]: meshes made from a metric (image meshing).
+//! * [`shading`]: shape from shading (a Lambertian surface's height from its image) by fast marching.
 
 pub mod anisotropic;
 pub mod contours;
@@ -51,6 +52,7 @@ pub mod planning;
 pub mod prefetch;
 pub mod sampling;
 pub mod segmentation;
+pub mod shading;
 pub mod skeleton;
 
 pub use control::Control;

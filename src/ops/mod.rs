@@ -9,6 +9,7 @@
 //!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 //! * [`grid_sample`]: `grid.sample`, farthest-point sampling with geodesic Voronoi labels.
 //! * [`grid_mesh`]: `grid.mesh`, image meshing by geodesic Delaunay (a new mesh dataset).
+//! * [`grid_shading`]: `grid.shape_from_shading`, a surface's height from its image (shape from shading).
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 //! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
@@ -26,6 +27,7 @@ pub mod grid_paths;
 pub mod grid_plan;
 pub mod grid_sample;
 pub mod grid_segment;
+pub mod grid_shading;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;

@@ -1,4 +1,4 @@
-//! `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}` over HTTP, and their 4xx.
+//! `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample,shape-from-shading}` over HTTP, and their 4xx.
 
 use geodex::io::ArrayData;
 use ndarray::ArrayD;
@@ -481,4 +481,76 @@ async fn mesh_refuses_bad_counts_and_images_naming_the_field() {
     )
     .await;
     assert_eq!(v["field"], "dataset", "{v}");
+}
+
+/// The image of a cone `z = 10 - |x - c|` (slope 1: `I = 1/sqrt(2)`) with a
+/// lit apex, as f64.
+fn cone_image(n: usize) -> ArrayData {
+    let c = (n / 2) as f64;
+    ArrayData::F64(ArrayD::from_shape_fn(ndarray::IxDyn(&[n, n]), |ix| {
+        let (a, b) = (ix[0] as f64 - c, ix[1] as f64 - c);
+        if a == 0.0 && b == 0.0 {
+            1.0
+        } else {
+            0.5f64.sqrt()
+        }
+    }))
+}
+
+#[tokio::test]
+async fn shape_from_shading_recovers_a_cone_from_its_apex() {
+    let app = spawn(|_| {}).await;
+    let image = app.upload(&cone_image(33)).await;
+    let res = post(
+        &app,
+        "/v1/grid/shape-from-shading",
+        json!({"image": image, "anchors": {"kind": "singular", "height": 10.0}}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    assert_eq!(body["stats"]["anchors"], 1, "{body}");
+    assert_eq!(body["height"]["shape"], json!([33, 33]));
+    let z = npy_f64(&app, &body["height"]).await;
+    // Singular anchors fall away from the apex: z = 10 - |x - c| up to the
+    // scheme's error on a cone (largest along the diagonals).
+    for (i, &v) in z.iter().enumerate() {
+        let (a, b) = ((i / 33) as f64 - 16.0, (i % 33) as f64 - 16.0);
+        let exact = 10.0 - (a * a + b * b).sqrt();
+        assert!((v - exact).abs() <= 0.6, "cell {i}: {v} vs {exact}");
+    }
+    assert_eq!(body["stats"]["max_height"], 10.0);
+    assert!(geodex::ops::registry::find("grid.shape_from_shading").is_some());
+}
+
+#[tokio::test]
+async fn shape_from_shading_refusals_name_the_field() {
+    let app = spawn(|_| {}).await;
+    let image = app.upload(&cone_image(9)).await;
+    let dark = app
+        .upload(&ArrayData::F64(ArrayD::zeros(ndarray::IxDyn(&[4, 4]))))
+        .await;
+    for (body, field) in [
+        (json!({"image": dark}), "image"),
+        (json!({"image": image, "order": 3}), "order"),
+        (
+            json!({"image": image, "anchors": {"kind": "cells", "cells": [[0, 0], [9, 0]], "heights": [0.0, 1.0]}}),
+            "anchors.cells[1]",
+        ),
+        (
+            json!({"image": image, "anchors": {"kind": "cells", "cells": [[0, 0]], "heights": []}}),
+            "anchors.heights",
+        ),
+        (
+            json!({"image": image, "albedo": 2.0, "anchors": {"kind": "singular"}}),
+            "anchors",
+        ),
+        (json!({"image": "ds_missing"}), "image"),
+    ] {
+        let res = post(&app, "/v1/grid/shape-from-shading", body.clone()).await;
+        let status = res.status().as_u16();
+        assert!(status == 422 || status == 404, "{body}: {status}");
+        let v = problem(res, status).await;
+        assert_eq!(v["field"], field, "{body}: {v}");
+    }
 }

@@ -5,6 +5,7 @@
 //! * [`grid`]: `POST /v1/grid/distance`.
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
+//! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample}`.
@@ -20,4 +21,5 @@ pub mod mesh;
 pub mod metric;
 pub mod paths;
 pub mod segment;
+pub mod shading;
 pub mod tensor;
