@@ -246,7 +246,7 @@ def main():
         d.find_element(By.CSS_SELECTOR, "input[name=tool][value=segment]").click()
         page.click_cell(128, 40, N, N)
         page.wait("GX.stats.segment && GX.stats.segment.labels.length === 1", "one region")
-        Select(d.find_element(By.ID, "seg-label")).select_by_value("2")
+        Select(d.find_element(By.ID, "seg-label")).select_by_visible_text("2")
         page.click_cell(128, 215, N, N)
         page.wait("GX.stats.segment && GX.stats.segment.labels.length === 2 && "
                   "document.getElementById('overlay').complete", "two regions")
@@ -282,7 +282,7 @@ def main():
         # ---- latency on a 1024² image with the map cached --------------------------------
         d.find_element(By.CSS_SELECTOR, "input[name=tool][value=path]").click()
         Select(d.find_element(By.ID, "sample")).select_by_value("rooms")
-        Select(d.find_element(By.ID, "sample-size")).select_by_value("1024")
+        Select(d.find_element(By.ID, "sample-size")).select_by_visible_text("1024")
         d.find_element(By.ID, "load-sample").click()
         page.wait("GX.imageState.image && GX.imageState.image.shape[0] === 1024 && "
                   "document.getElementById('metric-kind').value === 'intensity'", "the 1024² sample", 120)
@@ -299,6 +299,8 @@ def main():
                       f"Math.abs(GX.stats.lastPath.end[1] - {t[1]}) <= 1.5", f"the 1024² path to {t}")
             assert page.js("GX.stats.lastPath.cached"), f"the path to {t} did not use the cached map"
         ms = page.js(f"GX.stats.pathMs.slice({start})")
+        fetch_ms = page.js(f"GX.stats.pathFetchMs.slice({start})")
+        server_ms = page.js(f"GX.stats.pathServerMs.slice({start})")
         page.shot("image-1024-path")
         page.check_clean("1024² image: source, 30 pointer moves on the cached map")
 
@@ -360,7 +362,8 @@ def main():
 
         print(f"latency: first distance map of a 1024² image shown {first_ms:.1f} ms after the click")
         print(f"latency: pointer move → path drawn on the cached 1024² map: median {statistics.median(ms):.1f} ms, "
-              f"min {min(ms):.1f}, max {max(ms):.1f} over {len(ms)} moves")
+              f"min {min(ms):.1f}, max {max(ms):.1f} over {len(ms)} moves (median request round trip "
+              f"{statistics.median(fetch_ms):.1f} ms, of which the server's own total {statistics.median(server_ms):.1f} ms)")
     finally:
         d.quit()
 

@@ -26,7 +26,7 @@ window.GX = window.GX || {};
   };
   // What the browser test and a curious developer can read.
   GX.imageState = S;
-  GX.stats = { pathMs: [], firstMapMs: [], lastPath: null, segment: null };
+  GX.stats = { pathMs: [], pathFetchMs: [], pathServerMs: [], firstMapMs: [], lastPath: null, segment: null };
 
   // ---- metric -------------------------------------------------------------
 
@@ -229,10 +229,8 @@ window.GX = window.GX || {};
     S.live = null;
     const t0 = performance.now();
     const sec = metricSection();
-    // Warm the cache of /v1/grid/paths: its first answer computes and keeps the
-    // whole map (early_stop: false), so every later pointer move only descends.
-    const warm = GX.api("POST", "/v1/grid/paths", { json: { ...sec, sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
-      .catch(GX.fail);
+    let warmed;
+    S.warmPromise = new Promise((ok) => { warmed = ok; });
     const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, sources: [{ point: p }] } });
     if (S.source !== p) return; // a newer click won
     S.distanceId = r.distance.id;
@@ -242,9 +240,15 @@ window.GX = window.GX || {};
     const ms = performance.now() - t0;
     GX.stats.firstMapMs.push(ms);
     GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
+    // Then warm the cache of /v1/grid/paths (after the picture, so that the two
+    // solves do not share the CPU): its first answer computes and keeps the whole
+    // map (early_stop: false); every later pointer move only descends. Pointer
+    // moves wait for it rather than each solving the same map.
+    await GX.api("POST", "/v1/grid/paths", { json: { ...sec, sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
+      .catch(GX.fail);
+    warmed();
+    if (S.source === p) S.warmed = p;
     loadField(r.distance.data_url, "distance").catch(GX.fail);
-    await warm;
-    S.warmed = p;
   }
 
   /** Fetches a scalar field as NPY for the colour bar and the read-out. */
@@ -285,11 +289,15 @@ window.GX = window.GX || {};
   async function pump() {
     S.inflight = true;
     try {
+      if (S.warmPromise) await S.warmPromise;
       while (S.pending && S.source) {
         const { p, t } = S.pending;
         S.pending = null;
         const src = S.source;
+        const t1 = performance.now();
         const r = await GX.api("POST", "/v1/grid/paths", { json: { ...metricSection(), sources: [{ point: src }], ends: [p], early_stop: false }, key: "pointer-path" });
+        GX.stats.pathFetchMs.push(performance.now() - t1);
+        GX.stats.pathServerMs.push(r.stats.total_seconds * 1000);
         if (S.source !== src) continue;
         const path = r.paths[0];
         if (!S.live) S.live = svgEl("polyline", { class: "live" });
