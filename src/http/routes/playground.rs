@@ -22,53 +22,30 @@ struct Asset {
     body: &'static str,
 }
 
+/// An [`Asset`] read from `src/http/playground/` at compile time.
+macro_rules! asset {
+    ($name:literal, $media:expr) => {
+        Asset {
+            name: $name,
+            media: $media,
+            body: include_str!(concat!("../playground/", $name)),
+        }
+    };
+}
+
+const JS: &str = "text/javascript; charset=utf-8";
+
 /// Every file of the playground; `index.html` is also served at `/playground`.
 const ASSETS: &[Asset] = &[
-    Asset {
-        name: "index.html",
-        media: "text/html; charset=utf-8",
-        body: include_str!("../playground/index.html"),
-    },
-    Asset {
-        name: "style.css",
-        media: "text/css; charset=utf-8",
-        body: include_str!("../playground/style.css"),
-    },
-    Asset {
-        name: "api.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/api.js"),
-    },
-    Asset {
-        name: "samples.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/samples.js"),
-    },
-    Asset {
-        name: "image.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/image.js"),
-    },
-    Asset {
-        name: "viewer.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/viewer.js"),
-    },
-    Asset {
-        name: "mesh.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/mesh.js"),
-    },
-    Asset {
-        name: "jobs.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/jobs.js"),
-    },
-    Asset {
-        name: "main.js",
-        media: "text/javascript; charset=utf-8",
-        body: include_str!("../playground/main.js"),
-    },
+    asset!("index.html", "text/html; charset=utf-8"),
+    asset!("style.css", "text/css; charset=utf-8"),
+    asset!("api.js", JS),
+    asset!("samples.js", JS),
+    asset!("image.js", JS),
+    asset!("viewer.js", JS),
+    asset!("mesh.js", JS),
+    asset!("jobs.js", JS),
+    asset!("main.js", JS),
 ];
 
 fn serve(name: &str) -> Response {
