@@ -102,12 +102,13 @@ pub fn api_router() -> OpenApiRouter<AppState> {
 }
 
 /// The complete application: API routes, `/openapi.json`, `/docs`, the
-/// fallback and every middleware layer.
+/// playground, the fallback and every middleware layer.
 pub fn router(state: AppState, settings: &crate::config::ServeArgs) -> axum::Router {
     let (api, doc) = api_router().split_for_parts();
     let doc = openapi::allow_variant_tags(doc);
     let app = api
         .merge(routes::docs::router(doc))
+        .merge(routes::playground::router())
         .fallback(error::fallback)
         .with_state(state);
     layers::apply(app, settings)

@@ -8,6 +8,7 @@ mod load;
 mod mesh;
 mod openapi;
 mod paths;
+mod playground;
 mod segment;
 
 mod tensor;

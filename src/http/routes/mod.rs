@@ -11,6 +11,7 @@
 //! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample}`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
+//! * [`playground`]: the interactive page at `/playground` (`/` redirects to it).
 
 pub mod datasets;
 pub mod docs;
@@ -20,6 +21,7 @@ pub mod jobs;
 pub mod mesh;
 pub mod metric;
 pub mod paths;
+pub mod playground;
 pub mod segment;
 pub mod shading;
 pub mod tensor;
