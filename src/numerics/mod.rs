@@ -30,6 +30,7 @@
 //! * [`paths`]: minimal paths by gradient descent of a distance map, with a discrete fallback.
 //! * [`anisotropic`]: Riemannian tensor fields, adaptive-stencil fast marching, designed metrics.
 //! * [`sampling`]: farthest-point sampling of grids with local fronts.
+//! * [`shape`]: distance matrices, MDS, SMACOF, Isomap and canonical forms (chapter 5).
 
 pub mod anisotropic;
 pub mod contours;
@@ -48,6 +49,7 @@ pub mod planning;
 pub mod prefetch;
 pub mod sampling;
 pub mod segmentation;
+pub mod shape;
 pub mod skeleton;
 
 pub use control::Control;

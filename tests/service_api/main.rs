@@ -9,6 +9,7 @@ mod mesh;
 mod openapi;
 mod paths;
 mod segment;
+mod shape;
 
 mod tensor;
 mod tensor_metric_ops;

@@ -7,7 +7,8 @@
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
-//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample}`.
+//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
+//! * [`points`]: `POST /v1/points/isomap`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
 
@@ -19,5 +20,6 @@ pub mod jobs;
 pub mod mesh;
 pub mod metric;
 pub mod paths;
+pub mod points;
 pub mod segment;
 pub mod tensor;
