@@ -37,7 +37,10 @@ fn arg<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
     let threads = rayon::current_num_threads();
     let control = Control::new();
     match args.first().map(String::as_str) {
@@ -68,7 +71,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
             let secs = started.elapsed().as_secs_f64();
             if let Some(out) = args.get(4) {
-                std::fs::write(out, io::encode_npy(&ArrayData::F64(r.embedding.coords.into_dyn()))?)?;
+                std::fs::write(
+                    out,
+                    io::encode_npy(&ArrayData::F64(r.embedding.coords.into_dyn()))?,
+                )?;
             }
             println!(
                 "{{\"tool\": \"geodex\", \"case\": \"isomap\", \"points\": {}, \"k\": {k}, \"landmarks\": {l}, \
@@ -84,7 +90,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let started = Instant::now();
             let topo = Topology::new(&mesh);
             let heat = match m {
-                MeshMethod::Heat => Some(HeatSolver::new(&mesh, &topo, &HeatOptions::default(), &control)?),
+                MeshMethod::Heat => Some(HeatSolver::new(
+                    &mesh,
+                    &topo,
+                    &HeatOptions::default(),
+                    &control,
+                )?),
                 _ => None,
             };
             let setup = started.elapsed().as_secs_f64();
@@ -93,7 +104,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let l = landmarks(&mesh, &topo, count, &control)?;
                 let pick = t.elapsed().as_secs_f64();
                 let t = Instant::now();
-                let r = distance_rows(&mesh, &topo, &l, m, heat.as_ref(), Symmetry::Average, &control)?;
+                let r = distance_rows(
+                    &mesh,
+                    &topo,
+                    &l,
+                    m,
+                    heat.as_ref(),
+                    Symmetry::Average,
+                    &control,
+                )?;
                 let rows = t.elapsed().as_secs_f64();
                 println!(
                     "{{\"tool\": \"geodex\", \"case\": \"matrix\", \"vertices\": {}, \"landmarks\": {count}, \
@@ -126,7 +145,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
-        _ => return Err("usage: shape_analysis roll|isomap|matrix|embed ... (see the file's docs)".into()),
+        _ => {
+            return Err(
+                "usage: shape_analysis roll|isomap|matrix|embed ... (see the file's docs)".into(),
+            )
+        }
     }
     Ok(())
 }
