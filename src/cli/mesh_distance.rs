@@ -69,7 +69,8 @@ pub enum MeshMethodArg {
     Dijkstra,
 }
 
-struct One(Arc<MeshInput>);
+/// The one mesh of a mesh command, whatever id its request names.
+pub(crate) struct One(pub(crate) Arc<MeshInput>);
 
 impl LoadInputs for One {
     async fn load(&mut self, _ids: Vec<(String, String)>) -> Result<(), ApiError> {
@@ -104,26 +105,25 @@ fn parse_face(s: &str, i: usize) -> Result<MeshPointSpec, String> {
     })
 }
 
-fn write_npy(path: &Path, array: &ArrayData, flag: &str) -> Result<(), String> {
+pub(crate) fn write_npy(path: &Path, array: &ArrayData, flag: &str) -> Result<(), String> {
     let bytes = io::encode_npy(array).map_err(|e| format!("{flag}: {e}"))?;
     std::fs::write(path, bytes).map_err(|e| format!("{flag} {}: {e}", path.display()))
 }
 
-/// Runs the command.
-pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
-    let bytes =
-        std::fs::read(&args.mesh).map_err(|e| format!("--mesh {}: {e}", args.mesh.display()))?;
-    let format = args
-        .mesh
+/// Reads a mesh file (format by extension, else detected) and prints its
+/// report (welding, dropped faces, components) on stderr.
+pub(crate) fn load_mesh_file(path: &Path) -> Result<MeshInput, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("--mesh {}: {e}", path.display()))?;
+    let format = path
         .file_name()
         .and_then(|n| MeshFormat::from_name(&n.to_string_lossy()));
     let loaded = read_mesh(&bytes, format, &MeshLimits::default())
-        .map_err(|e| format!("--mesh {}: {e}", args.mesh.display()))?;
+        .map_err(|e| format!("--mesh {}: {e}", path.display()))?;
     let r = &loaded.report;
     eprintln!(
         "geodex: {}: {} vertices ({} welded), {} faces ({} degenerate and {} duplicate dropped), \
          {} components, {} boundary loops, {} non-manifold edges",
-        args.mesh.display(),
+        path.display(),
         r.vertices,
         r.welded_vertices,
         r.faces,
@@ -133,6 +133,16 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         r.boundary_loops,
         r.non_manifold_edges
     );
+    Ok(MeshInput {
+        mesh: loaded.mesh,
+        topology: loaded.topology,
+        report: loaded.report,
+    })
+}
+
+/// Runs the command.
+pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
+    let input = load_mesh_file(&args.mesh)?;
     let mut sources: Vec<MeshPointSpec> = args
         .source_vertices
         .iter()
@@ -161,11 +171,7 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         weights: None,
         heat: HeatSpec { m: args.heat_m },
     };
-    let inputs = One(Arc::new(MeshInput {
-        mesh: loaded.mesh,
-        topology: loaded.topology,
-        report: loaded.report,
-    }));
+    let inputs = One(Arc::new(input));
     let output = run_operation(Box::new(request), inputs).map_err(|e| match e {
         CliRunError::Op(e) => e.to_string(),
         CliRunError::Other(reason) => reason,

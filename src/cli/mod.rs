@@ -16,6 +16,7 @@ mod run;
 pub mod segment;
 
 pub mod mesh_distance;
+pub mod shape;
 mod usage;
 
 /// `--spacing`, shared by every grid command.
@@ -77,6 +78,10 @@ pub enum Command {
 
     /// Geodesic distance on a triangle mesh file (batch use), written as NPY.
     MeshDistance(mesh_distance::MeshDistanceArgs),
+    /// Geodesic distance matrix of a mesh file (all pairs or landmark rows), written as NPY.
+    DistanceMatrix(shape::DistanceMatrixArgs),
+    /// Bending-invariant canonical form of a mesh file (MDS of its geodesic distances), written as PLY.
+    Embed(shape::EmbedArgs),
 }
 
 /// Entry point of the binary.
@@ -96,6 +101,10 @@ pub fn main() -> ExitCode {
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),
+        Some(Command::DistanceMatrix(args)) => {
+            shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)
+        }
+        Some(Command::Embed(args)) => shape::run_embed(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -29,7 +29,8 @@ Every error is an RFC 9457 `application/problem+json` document naming the offend
     tags(
         (name = "datasets", description = "Upload, inspect, download and delete arrays."),
         (name = "grid", description = "Operations on 2D and 3D grids."),
-        (name = "mesh", description = "Geodesics on triangle meshes: distance, Voronoi cells, paths, sampling."),
+        (name = "mesh", description = "Geodesics on triangle meshes: distance, Voronoi cells, paths, sampling, distance matrices, canonical forms."),
+        (name = "points", description = "Point clouds: Isomap."),
         (name = "operations", description = "Health, readiness and metrics."),
         (name = "jobs", description = "Durable background jobs: submit any operation, poll, cancel, download results."),
     ),

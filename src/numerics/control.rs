@@ -63,6 +63,17 @@ impl<'a> Control<'a> {
         self
     }
 
+    /// The same cancel flags without the progress sink: for the inner
+    /// solves of a computation that reports its own progress (many solves
+    /// run in parallel, each would otherwise report its own fraction).
+    pub const fn cancel_only(&self) -> Self {
+        Self {
+            cancel: self.cancel,
+            also: self.also,
+            progress: None,
+        }
+    }
+
     /// True once the caller asked the computation to stop.
     #[inline]
     pub fn is_cancelled(&self) -> bool {

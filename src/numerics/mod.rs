@@ -33,6 +33,7 @@
 //!   Delaunay triangulations with their repair, Lloyd relaxation.
 //! * [`meshing`]: meshes made from a metric (image meshing).
 //! * [`shading`]: shape from shading (a Lambertian surface's height from its image) by fast marching.
+//! * [`shape`]: distance matrices, MDS, SMACOF, Isomap and canonical forms (chapter 5).
 
 pub mod anisotropic;
 pub mod contours;
@@ -53,6 +54,7 @@ pub mod prefetch;
 pub mod sampling;
 pub mod segmentation;
 pub mod shading;
+pub mod shape;
 pub mod skeleton;
 
 pub use control::Control;

@@ -17,6 +17,9 @@
 //! * [`tensor_spec`]: the `tensor` section shared by both.
 //! * [`mesh_distance`], [`mesh_voronoi`], [`mesh_paths`], [`mesh_sample`]:
 //!   geodesics on triangle meshes (shared pieces in [`mesh_common`]).
+//! * [`mesh_distance_matrix`], [`mesh_embed`], [`points_isomap`]: shape
+//!   analysis: distance matrices, canonical forms, Isomap (shared pieces in
+//!   [`spec::shape`]).
 
 pub mod grid_distance;
 pub mod grid_edt;
@@ -32,10 +35,13 @@ pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
 pub mod mesh_distance;
+pub mod mesh_distance_matrix;
+pub mod mesh_embed;
 pub mod mesh_paths;
 pub mod mesh_sample;
 pub mod mesh_voronoi;
 pub mod parse;
+pub mod points_isomap;
 pub mod registry;
 pub mod spec;
 

@@ -10,6 +10,7 @@ mod openapi;
 mod paths;
 mod playground;
 mod segment;
+mod shape;
 
 mod tensor;
 mod tensor_metric_ops;

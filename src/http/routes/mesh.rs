@@ -2,8 +2,11 @@
 //! on mesh datasets. The handlers load the mesh (cached), run the operation
 //! on the solver pool with the store's heat-factorisation cache, and store
 //! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
+//! Shape analysis: distance matrices (`/v1/mesh/distance-matrix`, an NPY
+//! matrix dataset) and canonical forms (`/v1/mesh/embed`, a mesh dataset).
 
 use std::collections::HashMap;
+use std::time::Instant;
 
 use axum::extract::State;
 use axum::Json;
@@ -12,9 +15,11 @@ use serde_json::Value;
 use utoipa::ToSchema;
 
 use crate::http::extract::ApiJson;
-use crate::http::operation::{run, store_output};
+use crate::http::operation::{respond, run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
+use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
+use crate::ops::mesh_embed::MeshEmbedRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
 use crate::ops::mesh_sample::MeshSampleRequest;
 use crate::ops::mesh_voronoi::MeshVoronoiRequest;
@@ -170,4 +175,118 @@ pub async fn sample(
     ApiJson(request): ApiJson<MeshSampleRequest>,
 ) -> Result<Json<MeshResponse>, ApiError> {
     run_mesh_op(&state, request).await
+}
+
+/// Answer of `POST /v1/mesh/distance-matrix`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DistanceMatrixResponse {
+    /// The `rows × columns` f64 matrix (`data_url?format=npy`): row `i` holds
+    /// the distance from vertex `sources[i]` (every vertex in order for all
+    /// pairs) to every vertex, `+inf` in other components.
+    pub matrix: DatasetRef,
+    /// `method`, `symmetry`, `rows`, `columns`, `all_pairs`, `sources`,
+    /// `asymmetry` (largest |D[i, sⱼ] − D[j, sᵢ]| before symmetrisation),
+    /// `heat`, `stats`.
+    #[serde(flatten)]
+    #[schema(value_type = Object)]
+    pub details: serde_json::Map<String, Value>,
+}
+
+/// `POST /v1/mesh/distance-matrix`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/distance-matrix",
+    tag = "mesh",
+    summary = "Geodesic distance matrix of a triangle mesh",
+    description = "Distances between many vertices at once, every row a single-source solve sharing one setup \
+(one topology, one heat factorisation) and the rows running in parallel. Rows: `sources` if given, else \
+`landmarks` farthest-point landmarks, else every vertex (all pairs, meshes of up to 5000 vertices; larger \
+meshes get a 413 naming `landmarks`). The source block is made symmetric by `symmetry` (`average` by \
+default, `min`, or `none`). The matrix is stored as an f64 dataset (NPY).",
+    request_body(content((MeshDistanceMatrixRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = DistanceMatrixResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn distance_matrix(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshDistanceMatrixRequest>,
+) -> Result<Json<DistanceMatrixResponse>, ApiError> {
+    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
+    let matrix = take_ref(&mut details, "matrix")?;
+    Ok(Json(DistanceMatrixResponse { matrix, details }))
+}
+
+/// Answer of `POST /v1/mesh/embed`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EmbedResponse {
+    /// The canonical form: the input's faces at the embedded positions (PLY).
+    pub result: DatasetRef,
+    /// The embedded points, `vertices × dimensions` f64.
+    pub coordinates: DatasetRef,
+    /// `method`, `dimensions`, `landmarks`, `explained_variance`, `stress`
+    /// (normalised, over the measured pairs), `smacof_stress` (per
+    /// iteration), `asymmetry`, `stats`.
+    #[serde(flatten)]
+    #[schema(value_type = Object)]
+    pub details: serde_json::Map<String, Value>,
+}
+
+/// `POST /v1/mesh/embed`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/embed",
+    tag = "mesh",
+    summary = "Bending-invariant canonical form of a triangle mesh",
+    description = "Embeds the geodesic distances of a connected mesh in 3D (or 2D) so that bent poses of one \
+surface get one shape (Elad and Kimmel): classical MDS of all pairs (meshes of up to 5000 vertices), \
+optionally refined by SMACOF (`smacof`), or landmark MDS from `landmarks` farthest-point landmarks. \
+A mesh of several components gets a 422 naming `mesh`.",
+    request_body(content((MeshEmbedRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = EmbedResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn embed(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshEmbedRequest>,
+) -> Result<Json<EmbedResponse>, ApiError> {
+    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
+    let result = take_ref(&mut details, "result")?;
+    let coordinates = take_ref(&mut details, "coordinates")?;
+    details.remove("mesh_report");
+    Ok(Json(EmbedResponse {
+        result,
+        coordinates,
+        details,
+    }))
+}
+
+/// Removes the stored output `name` from an answer document.
+pub(crate) fn take_ref(
+    doc: &mut serde_json::Map<String, Value>,
+    name: &str,
+) -> Result<DatasetRef, ApiError> {
+    let value = doc
+        .remove(name)
+        .ok_or_else(|| ApiError::internal(format!("the output `{name}` was not stored")))?;
+    serde_json::from_value(value).map_err(ApiError::internal)
 }

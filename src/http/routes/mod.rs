@@ -8,7 +8,8 @@
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
-//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample}`.
+//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
+//! * [`points`]: `POST /v1/points/isomap`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
 //! * [`playground`]: the interactive page at `/playground` (`/` redirects to it).
@@ -22,6 +23,7 @@ pub mod mesh;
 pub mod metric;
 pub mod paths;
 pub mod playground;
+pub mod points;
 pub mod segment;
 pub mod shading;
 pub mod tensor;

@@ -1,7 +1,7 @@
 //! Analytic test surfaces: icospheres, flat triangulated squares, prisms and
 //! cones, used as oracles by tests and by `geodex bench`.
 
-use super::{norm, TriMesh};
+use super::{norm, MeshError, TriMesh};
 use std::collections::HashMap;
 
 /// The icosphere of radius `radius` after `level` 1-to-4 subdivisions of the
@@ -128,13 +128,38 @@ pub fn flat_square(n: usize, size: f64, jitter: f64) -> TriMesh {
 /// developable surface whose geodesics unroll to straight lines (perimeter
 /// `2·sides·radius·sin(π/sides)`).
 pub fn prism(sides: usize, rings: usize, radius: f64, height: f64) -> TriMesh {
-    let (sides, rings) = (sides.max(3), rings.max(1));
+    let sides = sides.max(3);
+    let section: Vec<[f64; 2]> = (0..sides)
+        .map(|s| {
+            let a = std::f64::consts::TAU * s as f64 / sides as f64;
+            [radius * a.cos(), radius * a.sin()]
+        })
+        .collect();
+    tube_unchecked(&section, rings, height)
+}
+
+/// The open tube over the closed polygon `section` (in the plane z = 0,
+/// at least three corners, else [`MeshError::NoFaces`]), straight along z up to `height` in `rings`
+/// layers of quads split in two. Every quad is a flat rectangle whose sides
+/// are a polygon edge and a vertical segment, so two tubes over polygons
+/// with the same edge lengths have identical triangles: an exact isometry
+/// of the meshes, however the section is bent (the test pairs of the
+/// canonical forms).
+pub fn tube(section: &[[f64; 2]], rings: usize, height: f64) -> Result<TriMesh, MeshError> {
+    if section.len() < 3 {
+        return Err(MeshError::NoFaces);
+    }
+    let m = tube_unchecked(section, rings, height);
+    TriMesh::new(m.positions().to_vec(), m.faces().to_vec())
+}
+
+fn tube_unchecked(section: &[[f64; 2]], rings: usize, height: f64) -> TriMesh {
+    let (sides, rings) = (section.len(), rings.max(1));
     let mut pos = Vec::with_capacity(sides * (rings + 1));
     for r in 0..=rings {
         let z = height * r as f64 / rings as f64;
         for s in 0..sides {
-            let a = std::f64::consts::TAU * s as f64 / sides as f64;
-            pos.push([radius * a.cos(), radius * a.sin(), z]);
+            pos.push([section[s][0], section[s][1], z]);
         }
     }
     let id = |r: usize, s: usize| (r * sides + s % sides) as u32;

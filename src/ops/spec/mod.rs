@@ -14,6 +14,7 @@
 //!   masks).
 //! * [`mesh`]: surface points, mesh methods, the mesh input and the
 //!   distance solve shared by the mesh operations.
+//! * [`shape`]: size limits, symmetrisation and errors of the shape operations.
 //! * [`errors`]: core errors as [`crate::ops::OpError`]s naming the field.
 //! * [`defaults`]: the serde defaults.
 
@@ -25,4 +26,5 @@ pub mod errors;
 pub mod grid;
 pub mod mesh;
 pub mod scheme;
+pub mod shape;
 pub mod tensor;

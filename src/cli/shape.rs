@@ -1,0 +1,165 @@
+//! `geodex distance-matrix` and `geodex embed`: geodesic distance matrices
+//! and canonical forms of a mesh file, for batch users.
+//!
+//! Each builds the request of its endpoint (`POST /v1/mesh/distance-matrix`,
+//! `POST /v1/mesh/embed`) and runs it through the same operation.
+//!
+//! ```text
+//! geodex distance-matrix --mesh bunny.ply --landmarks 500 --method heat --out D.npy
+//! geodex embed --mesh cat.off --landmarks 300 --out form.ply --coordinates X.npy
+//! ```
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use clap::Args;
+
+use super::mesh_distance::{load_mesh_file, write_npy, MeshMethodArg, One};
+use super::run::{run_operation, CliRunError};
+use crate::io::mesh::write::write_ply;
+use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
+use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
+use crate::ops::spec::mesh::{HeatSpec, MeshMethodSpec};
+use crate::ops::spec::shape::SymmetrySpec;
+use crate::ops::{DynOperation, OpOutput};
+
+/// Flags of `geodex distance-matrix`.
+#[derive(Debug, Clone, Args)]
+pub struct DistanceMatrixArgs {
+    /// The mesh: OBJ, PLY, OFF or STL.
+    #[arg(long, value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// Rows from this many farthest-point landmarks (default: all pairs, up to 5000 vertices).
+    #[arg(long)]
+    pub landmarks: Option<usize>,
+    /// A source vertex (a row); repeat for several. Replaces --landmarks.
+    #[arg(long = "source-vertex", value_name = "V")]
+    pub sources: Vec<u32>,
+    /// The method.
+    #[arg(long, value_enum, default_value_t = MeshMethodArg::FastMarching)]
+    pub method: MeshMethodArg,
+    /// Heat method time step factor m (t = m h²).
+    #[arg(long, default_value_t = 1.0)]
+    pub heat_m: f64,
+    /// Take the smaller of d(i, j) and d(j, i) instead of their average.
+    #[arg(long)]
+    pub min: bool,
+    /// Output: the rows × vertices f64 matrix (NPY).
+    #[arg(long, value_name = "D.npy")]
+    pub out: PathBuf,
+}
+
+/// Flags of `geodex embed`.
+#[derive(Debug, Clone, Args)]
+pub struct EmbedArgs {
+    /// The mesh (one connected component): OBJ, PLY, OFF or STL.
+    #[arg(long, value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// Embedding dimension, 2 or 3.
+    #[arg(long, default_value_t = 3)]
+    pub dimensions: usize,
+    /// Landmark MDS from this many farthest-point landmarks (default: all pairs).
+    #[arg(long)]
+    pub landmarks: Option<usize>,
+    /// Refine the all-pairs embedding by this many SMACOF iterations.
+    #[arg(long, value_name = "N")]
+    pub smacof: Option<usize>,
+    /// The method.
+    #[arg(long, value_enum, default_value_t = MeshMethodArg::FastMarching)]
+    pub method: MeshMethodArg,
+    /// Heat method time step factor m (t = m h²).
+    #[arg(long, default_value_t = 1.0)]
+    pub heat_m: f64,
+    /// Output: the canonical form, the input's faces at the embedded positions (PLY).
+    #[arg(long, value_name = "FORM.ply")]
+    pub out: PathBuf,
+    /// Output: the vertices × dimensions f64 coordinates (NPY).
+    #[arg(long, value_name = "X.npy")]
+    pub coordinates: Option<PathBuf>,
+}
+
+fn method(m: MeshMethodArg) -> MeshMethodSpec {
+    match m {
+        MeshMethodArg::FastMarching => MeshMethodSpec::FastMarching,
+        MeshMethodArg::Heat => MeshMethodSpec::Heat,
+        MeshMethodArg::Exact => MeshMethodSpec::Exact,
+        MeshMethodArg::Dijkstra => MeshMethodSpec::Dijkstra,
+    }
+}
+
+/// Runs `request` on the mesh file; a refused field is named as its flag.
+fn run_on_mesh(request: Box<dyn DynOperation>, mesh: &std::path::Path) -> Result<OpOutput, String> {
+    let input = load_mesh_file(mesh)?;
+    run_operation(request, One(Arc::new(input))).map_err(|e| match e {
+        CliRunError::Op(e) => match e.field().map(|f| f.split(['.', '[']).next().unwrap_or(f)) {
+            Some("sources") => format!("--source-vertex: {e}"),
+            Some("heat") => format!("--heat-m: {e}"),
+            Some(flag) => format!("--{flag}: {e}"),
+            None => e.to_string(),
+        },
+        CliRunError::Other(reason) => reason,
+    })
+}
+
+/// Runs `geodex distance-matrix`.
+pub fn run_distance_matrix(args: &DistanceMatrixArgs) -> Result<(), String> {
+    let request = MeshDistanceMatrixRequest {
+        mesh: "file".into(),
+        landmarks: args.landmarks,
+        sources: (!args.sources.is_empty()).then(|| args.sources.clone()),
+        method: method(args.method),
+        symmetry: if args.min {
+            SymmetrySpec::Min
+        } else {
+            SymmetrySpec::Average
+        },
+        heat: HeatSpec { m: args.heat_m },
+    };
+    let output = run_on_mesh(Box::new(request), &args.mesh)?;
+    let matrix = output
+        .array("matrix")
+        .ok_or("the operation returned no matrix")?;
+    write_npy(&args.out, matrix, "--out")?;
+    eprintln!(
+        "geodex: {} × {} distances written to {}",
+        output.document["rows"],
+        output.document["columns"],
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Runs `geodex embed`.
+pub fn run_embed(args: &EmbedArgs) -> Result<(), String> {
+    let request = MeshEmbedRequest {
+        mesh: "file".into(),
+        dimensions: args.dimensions,
+        landmarks: args.landmarks,
+        smacof: args.smacof.map(|iterations| SmacofSpec {
+            iterations,
+            tolerance: 1e-6,
+        }),
+        method: method(args.method),
+        heat: HeatSpec { m: args.heat_m },
+    };
+    let output = run_on_mesh(Box::new(request), &args.mesh)?;
+    let form = output
+        .mesh
+        .as_ref()
+        .ok_or("the operation returned no mesh")?;
+    std::fs::write(&args.out, write_ply(&form.mesh.mesh, &[]))
+        .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    if let Some(p) = &args.coordinates {
+        let x = output
+            .array("coordinates")
+            .ok_or("the operation returned no coordinates")?;
+        write_npy(p, x, "--coordinates")?;
+    }
+    eprintln!(
+        "geodex: canonical form written to {} (explained variance {}, stress {})",
+        args.out.display(),
+        output.document["explained_variance"],
+        output.document["stress"]
+    );
+    Ok(())
+}

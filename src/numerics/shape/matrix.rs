@@ -1,0 +1,394 @@
+//! Geodesic distance matrices on triangle meshes: `D[i, v] = d(sᵢ, v)` for
+//! sources `s₀ … s_{k-1}` and every vertex `v` (landmark rows), or all pairs
+//! (`k = n`).
+//!
+//! Every source is a single-source solve of [`crate::numerics::mesh`]; what
+//! they share is built once: one topology (the caller's), the fast-marching
+//! tables ([`MarchPrep`]: one-ring graph, unfolded obtuse corners), one heat
+//! factorisation ([`HeatSolver`], two triangular solves per row afterwards),
+//! one edge graph for Dijkstra. The rows run in parallel on the caller's
+//! rayon pool (the solver pool when called from an operation), the cancel
+//! flags polled by every solve and before every row; progress is the
+//! fraction of rows done. Each row is the same numbers as the single-source
+//! solver's (the tests compare them bit for bit).
+//!
+//! **Symmetry.** Only the exact method (up to rounding) and Dijkstra on the
+//! edge graph give `d(i, j) = d(j, i)`; fast marching and the heat method
+//! solve from `i` and from `j` with different discretisation errors (first
+//! order in the edge length, of either sign). [`symmetrize`] replaces both
+//! by their **average** by default: the closest symmetric matrix in the
+//! Frobenius norm (what MDS and SMACOF assume), and, the two errors being of
+//! either sign, no worse than the worse of the two. [`Symmetry::Min`] takes
+//! the smaller instead, the right choice for methods that only overestimate
+//! (Dijkstra on a coarse graph, or distances bounded by `max_distance`).
+
+use ndarray::Array2;
+
+use super::graph::{par_rows, Graph};
+use super::ShapeError;
+use crate::numerics::mesh::exact::exact_distance;
+use crate::numerics::mesh::fast_marching::{march, MarchPrep};
+use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
+use crate::numerics::mesh::sources::{seeds, VertexGraph};
+use crate::numerics::mesh::{
+    norm, sub, HeatOptions, HeatSolver, MeshDistance, MeshMethod, SurfacePoint, Topology, TriMesh,
+};
+use crate::numerics::Control;
+
+/// How a matrix that should be symmetric is made so.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Symmetry {
+    /// `(D[i, j] + D[j, i]) / 2` (default).
+    #[default]
+    Average,
+    /// `min(D[i, j], D[j, i])`.
+    Min,
+    /// Leave the matrix as solved.
+    None,
+}
+
+/// Landmark rows: the sources and their `k × n` distances.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DistanceRows {
+    /// The source vertices, in row order.
+    pub sources: Vec<u32>,
+    /// `rows[[i, v]] = d(sources[i], v)`; `+inf` in other components.
+    pub rows: Array2<f64>,
+    /// Largest `|D[i, sⱼ] − D[j, sᵢ]|` over the source block before
+    /// symmetrisation (0 for the exact method up to rounding).
+    pub asymmetry: f64,
+}
+
+/// The distance rows from `sources` with `method`, sharing one setup (see
+/// the module docs). `heat` may hand in the mesh's prefactored solver (it is
+/// built once otherwise, with default options). The source block
+/// `D[i, sⱼ]` is symmetrised by `symmetry`.
+pub fn distance_rows(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[u32],
+    method: MeshMethod,
+    heat: Option<&HeatSolver>,
+    symmetry: Symmetry,
+    control: &Control<'_>,
+) -> Result<DistanceRows, ShapeError> {
+    let n = mesh.num_vertices();
+    if sources.is_empty() {
+        return Err(ShapeError::InvalidOption {
+            option: "sources",
+            reason: "at least one source is needed".into(),
+        });
+    }
+    if let Some(&s) = sources.iter().find(|&&s| s as usize >= n) {
+        return Err(ShapeError::InvalidOption {
+            option: "sources",
+            reason: format!("vertex {s} does not exist (the mesh has {n} vertices)"),
+        });
+    }
+    let inner = control.cancel_only();
+    let copy = |d: MeshDistance, row: &mut [f64]| row.copy_from_slice(&d.distance);
+    let solve = ShapeError::from_solve;
+    let mut rows = match method {
+        MeshMethod::FastMarching => {
+            let prep = MarchPrep::new(mesh, topo);
+            par_rows(sources, n, control, |s, row| {
+                let seeds = seeds(mesh, &[SurfacePoint::Vertex(s)], None).map_err(solve)?;
+                let mut out = MeshDistance {
+                    distance: vec![f64::INFINITY; n],
+                    labels: vec![-1; n],
+                };
+                march(mesh, &prep, &seeds, None, f64::INFINITY, &mut out, &inner).map_err(solve)?;
+                copy(out, row);
+                Ok(())
+            })?
+        }
+        MeshMethod::Heat => {
+            let built;
+            let solver = match heat {
+                Some(h) => h,
+                None => {
+                    built = HeatSolver::new(mesh, topo, &HeatOptions::default(), &inner)
+                        .map_err(solve)?;
+                    &built
+                }
+            };
+            par_rows(sources, n, control, |s, row| {
+                let d = solver
+                    .distance(mesh, &[SurfacePoint::Vertex(s)], f64::INFINITY, &inner)
+                    .map_err(solve)?;
+                copy(d, row);
+                Ok(())
+            })?
+        }
+        MeshMethod::Exact => par_rows(sources, n, control, |s, row| {
+            let d = exact_distance(
+                mesh,
+                topo,
+                &[SurfacePoint::Vertex(s)],
+                f64::INFINITY,
+                &inner,
+            )
+            .map_err(solve)?;
+            copy(d, row);
+            Ok(())
+        })?,
+        MeshMethod::Dijkstra => {
+            let graph = edge_graph(mesh);
+            par_rows(sources, n, control, |s, row| {
+                graph.dijkstra_into(s, row, &inner)
+            })?
+        }
+    };
+    let asymmetry = symmetrize_block(&mut rows, sources, symmetry);
+    Ok(DistanceRows {
+        sources: sources.to_vec(),
+        rows,
+        asymmetry,
+    })
+}
+
+/// The edge graph of a mesh with Euclidean edge lengths.
+pub fn edge_graph(mesh: &TriMesh) -> Graph {
+    let vg = VertexGraph::new(mesh);
+    let n = mesh.num_vertices();
+    let mut edges = Vec::with_capacity(vg.neighbours.len() / 2);
+    for v in 0..n as u32 {
+        for &u in vg.of(v) {
+            if u > v {
+                edges.push((v, u, norm(sub(mesh.position(u), mesh.position(v)))));
+            }
+        }
+    }
+    Graph::from_edges(n, &edges)
+}
+
+/// All pairs: `n × n`, symmetrised by `symmetry`.
+pub fn all_pairs(
+    mesh: &TriMesh,
+    topo: &Topology,
+    method: MeshMethod,
+    heat: Option<&HeatSolver>,
+    symmetry: Symmetry,
+    control: &Control<'_>,
+) -> Result<DistanceRows, ShapeError> {
+    let sources: Vec<u32> = (0..mesh.num_vertices() as u32).collect();
+    distance_rows(mesh, topo, &sources, method, heat, symmetry, control)
+}
+
+/// `count` farthest-point landmarks (fast-marching farthest-point sampling
+/// from the vertex farthest from vertex 0, [`farthest_point_sampling`]);
+/// fewer when the mesh has fewer vertices.
+pub fn landmarks(
+    mesh: &TriMesh,
+    topo: &Topology,
+    count: usize,
+    control: &Control<'_>,
+) -> Result<Vec<u32>, ShapeError> {
+    if count == 0 {
+        return Err(ShapeError::InvalidOption {
+            option: "landmarks",
+            reason: "must be >= 1".into(),
+        });
+    }
+    let s = farthest_point_sampling(
+        mesh,
+        topo,
+        &SamplingOptions {
+            count: Some(count),
+            radius: None,
+            first: None,
+            method: MeshMethod::FastMarching,
+        },
+        None,
+        control,
+    )
+    .map_err(ShapeError::from_solve)?;
+    Ok(s.samples)
+}
+
+/// Symmetrises the block `rows[[i, sources[j]]]` in place and returns the
+/// largest finite asymmetry found. A source listed twice keeps its rows.
+pub fn symmetrize_block(rows: &mut Array2<f64>, sources: &[u32], symmetry: Symmetry) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..sources.len() {
+        for j in i + 1..sources.len() {
+            let (a, b) = (
+                rows[[i, sources[j] as usize]],
+                rows[[j, sources[i] as usize]],
+            );
+            if a.is_finite() && b.is_finite() {
+                worst = worst.max((a - b).abs());
+            }
+            let v = match symmetry {
+                Symmetry::Average if a.is_finite() && b.is_finite() => 0.5 * (a + b),
+                Symmetry::Average | Symmetry::Min => a.min(b),
+                Symmetry::None => continue,
+            };
+            rows[[i, sources[j] as usize]] = v;
+            rows[[j, sources[i] as usize]] = v;
+        }
+    }
+    worst
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::mesh::shapes::{flat_square, icosphere};
+    use crate::numerics::mesh::{mesh_distance, MeshDistanceOptions};
+
+    const METHODS: [MeshMethod; 4] = [
+        MeshMethod::FastMarching,
+        MeshMethod::Heat,
+        MeshMethod::Exact,
+        MeshMethod::Dijkstra,
+    ];
+
+    #[test]
+    fn rows_are_the_single_source_solvers_rows() {
+        let mesh = icosphere(2, 1.0);
+        let topo = Topology::new(&mesh);
+        let heat = HeatSolver::new(&mesh, &topo, &HeatOptions::default(), &Control::new()).unwrap();
+        let sources = [0u32, 17, 101, 161];
+        for method in METHODS {
+            let r = distance_rows(
+                &mesh,
+                &topo,
+                &sources,
+                method,
+                Some(&heat),
+                Symmetry::None,
+                &Control::new(),
+            )
+            .unwrap();
+            assert_eq!(r.rows.dim(), (4, 162));
+            for (i, &s) in sources.iter().enumerate() {
+                let one = mesh_distance(
+                    &mesh,
+                    &topo,
+                    &[SurfacePoint::Vertex(s)],
+                    &MeshDistanceOptions {
+                        method,
+                        ..Default::default()
+                    },
+                    Some(&heat),
+                    &Control::new(),
+                )
+                .unwrap();
+                assert_eq!(
+                    r.rows.row(i).to_vec(),
+                    one.distance,
+                    "{method:?}, source {s}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn symmetry_within_the_methods_tolerance() {
+        // Asymmetry before symmetrisation, relative to the diameter (π):
+        // rounding for exact and Dijkstra, the discretisation error otherwise.
+        let mesh = icosphere(2, 1.0);
+        let topo = Topology::new(&mesh);
+        for (method, tol) in [
+            (MeshMethod::Exact, 1e-12),
+            (MeshMethod::Dijkstra, 1e-12),
+            (MeshMethod::FastMarching, 0.03),
+            (MeshMethod::Heat, 0.05),
+        ] {
+            let r = all_pairs(
+                &mesh,
+                &topo,
+                method,
+                None,
+                Symmetry::Average,
+                &Control::new(),
+            )
+            .unwrap();
+            let rel = r.asymmetry / std::f64::consts::PI;
+            assert!(rel <= tol, "{method:?}: asymmetry {rel}");
+            let d = &r.rows;
+            for i in 0..162 {
+                assert_eq!(d[[i, i]], 0.0);
+                for j in 0..162 {
+                    assert_eq!(d[[i, j]], d[[j, i]]);
+                }
+            }
+        }
+        // The average is symmetric and Min never exceeds it.
+        let mut a = Array2::from_shape_vec((2, 2), vec![0.0, 1.0, 3.0, 0.0]).unwrap();
+        let mut b = a.clone();
+        assert_eq!(symmetrize_block(&mut a, &[0, 1], Symmetry::Average), 2.0);
+        symmetrize_block(&mut b, &[0, 1], Symmetry::Min);
+        assert_eq!(
+            (a[[0, 1]], a[[1, 0]], b[[0, 1]], b[[1, 0]]),
+            (2.0, 2.0, 1.0, 1.0)
+        );
+    }
+
+    #[test]
+    fn exact_on_a_flat_square() {
+        let mesh = flat_square(6, 1.0, 0.3);
+        let topo = Topology::new(&mesh);
+        let r = all_pairs(
+            &mesh,
+            &topo,
+            MeshMethod::Exact,
+            None,
+            Symmetry::Average,
+            &Control::new(),
+        )
+        .unwrap();
+        let p = mesh.positions();
+        let mut worst = 0.0f64;
+        for i in 0..p.len() {
+            for j in 0..p.len() {
+                worst = worst.max((r.rows[[i, j]] - norm(sub(p[i], p[j]))).abs());
+            }
+        }
+        assert!(worst < 1e-12, "max error {worst}");
+    }
+
+    #[test]
+    fn landmarks_are_spread_and_rows_cancel() {
+        let mesh = icosphere(3, 1.0);
+        let topo = Topology::new(&mesh);
+        let l = landmarks(&mesh, &topo, 12, &Control::new()).unwrap();
+        assert_eq!(l.len(), 12);
+        let r = distance_rows(
+            &mesh,
+            &topo,
+            &l,
+            MeshMethod::FastMarching,
+            None,
+            Symmetry::Average,
+            &Control::new(),
+        )
+        .unwrap();
+        // Twelve well-spread points on the unit sphere: every pair at least
+        // ~0.9 apart (the icosahedron's 1.107, minus the greedy's slack).
+        for i in 0..12 {
+            for j in 0..12 {
+                if i != j {
+                    assert!(r.rows[[i, l[j] as usize]] > 0.8, "{i} {j}");
+                }
+            }
+        }
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let c = Control::new().with_cancel(&flag);
+        for method in METHODS {
+            let e = distance_rows(&mesh, &topo, &l, method, None, Symmetry::None, &c);
+            assert_eq!(e, Err(ShapeError::Cancelled), "{method:?}");
+        }
+        assert!(distance_rows(
+            &mesh,
+            &topo,
+            &[9999],
+            MeshMethod::Heat,
+            None,
+            Symmetry::None,
+            &Control::new()
+        )
+        .is_err());
+    }
+}

@@ -1,0 +1,90 @@
+//! Pieces shared by the shape operations (`mesh.distance_matrix`,
+//! `mesh.embed`, `points.isomap`): the size limits of all-pairs matrices,
+//! the symmetrisation rule, the landmark count, and the mapping of the
+//! core's [`ShapeError`].
+
+use ndarray::Array2;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::errors::mesh_solve_error;
+use crate::io::ArrayData;
+use crate::numerics::shape::matrix::Symmetry;
+use crate::numerics::shape::ShapeError;
+use crate::ops::{OpError, OutputArray};
+
+/// Most points (vertices) an all-pairs matrix or embedding takes: `n²`
+/// doubles, 200 MB at the limit. Above it, landmark rows are required.
+pub const ALL_PAIRS_LIMIT: usize = 5000;
+
+/// Most entries of a landmark-row matrix (`landmarks × n`): 512 MB of doubles.
+pub const MAX_MATRIX_ENTRIES: usize = 1 << 26;
+
+/// How a distance matrix is made symmetric where the method is not.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SymmetrySpec {
+    /// `(D[i, j] + D[j, i]) / 2`: the closest symmetric matrix (default).
+    #[default]
+    Average,
+    /// `min(D[i, j], D[j, i])`: for methods that only overestimate.
+    Min,
+    /// As solved.
+    None,
+}
+
+impl From<SymmetrySpec> for Symmetry {
+    fn from(s: SymmetrySpec) -> Self {
+        match s {
+            SymmetrySpec::Average => Symmetry::Average,
+            SymmetrySpec::Min => Symmetry::Min,
+            SymmetrySpec::None => Symmetry::None,
+        }
+    }
+}
+
+/// Checks a landmark count (`None`: all pairs) against the number of
+/// points `n` and the limits; `field` names the input (`mesh`, `points`).
+pub(crate) fn check_size(n: usize, landmarks: Option<usize>, field: &str) -> Result<(), OpError> {
+    match landmarks {
+        None if n > ALL_PAIRS_LIMIT => Err(OpError::TooLarge {
+            field: "landmarks".into(),
+            reason: format!(
+                "the {field} has {n} points and all pairs are limited to {ALL_PAIRS_LIMIT} \
+                 ({n}² distances): give `landmarks` (for example 500) to compute landmark rows instead"
+            ),
+        }),
+        Some(0) => Err(OpError::invalid("landmarks", "must be >= 1")),
+        Some(k) if k.saturating_mul(n) > MAX_MATRIX_ENTRIES => Err(OpError::TooLarge {
+            field: "landmarks".into(),
+            reason: format!(
+                "{k} landmarks × {n} points is more than {MAX_MATRIX_ENTRIES} distances: give fewer landmarks"
+            ),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Maps a core error; `disconnected` names the field whose change connects
+/// the input (`mesh`, or `k` for a neighbour graph).
+pub(crate) fn shape_error(e: ShapeError, input: &str) -> OpError {
+    match e {
+        ShapeError::Cancelled => OpError::Cancelled,
+        ShapeError::InvalidOption { option, reason } => OpError::invalid(option, reason),
+        ShapeError::Disconnected { what, .. } => {
+            let field = if what == "mesh" { input } else { "k" };
+            OpError::invalid(field, e.to_string())
+        }
+        ShapeError::Solve(s) => mesh_solve_error(s),
+        ShapeError::Numerical(reason) => OpError::invalid(input, reason),
+    }
+}
+
+/// A 2D f64 output array.
+pub(crate) fn matrix_output(name: &str, a: Array2<f64>) -> OutputArray {
+    OutputArray {
+        name: name.into(),
+        array: ArrayData::F64(a.into_dyn()),
+        spacing: None,
+    }
+}

@@ -1,0 +1,155 @@
+//! Shape analysis benchmark: Isomap of a point cloud, landmark distance
+//! matrices and landmark-MDS canonical forms of icospheres.
+//!
+//! ```text
+//! cargo bench --bench shape_analysis -- roll 10000 7 /tmp/roll.npy /tmp/roll_flat.npy  # the cloud, and its unrolled truth
+//! cargo bench --bench shape_analysis -- isomap /tmp/roll.npy 10 500     # k = 10, 500 landmarks (0: all pairs)
+//! cargo bench --bench shape_analysis -- matrix 7 500 heat               # 500 landmark rows, icosphere level 7
+//! cargo bench --bench shape_analysis -- embed 7 500 heat                # landmark-MDS canonical form, end to end
+//! ```
+//!
+//! Prints one JSON line per case; `tests/bench/compare_isomap.py` runs the
+//! Isomap case beside scikit-learn's on the same file. Threads: rayon's
+//! global pool (every core), as the service's solver pool would use.
+
+use std::time::Instant;
+
+use geodex::io::{self, ArrayData};
+use geodex::numerics::mesh::shapes::icosphere;
+use geodex::numerics::mesh::{HeatOptions, HeatSolver, MeshMethod, Topology};
+use geodex::numerics::shape::canonical::{canonical_form, CanonicalOptions};
+use geodex::numerics::shape::isomap::{isomap, swiss_roll, IsomapOptions};
+use geodex::numerics::shape::matrix::{distance_rows, landmarks, Symmetry};
+use geodex::numerics::Control;
+use ndarray::Array2;
+
+fn method(name: &str) -> MeshMethod {
+    match name {
+        "heat" => MeshMethod::Heat,
+        "exact" => MeshMethod::Exact,
+        "dijkstra" => MeshMethod::Dijkstra,
+        _ => MeshMethod::FastMarching,
+    }
+}
+
+fn arg<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
+    args.get(i).and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    let threads = rayon::current_num_threads();
+    let control = Control::new();
+    match args.first().map(String::as_str) {
+        Some("roll") => {
+            let (p, flat) = swiss_roll(arg(&args, 1, 10_000), arg(&args, 2, 7));
+            std::fs::write(&args[3], io::encode_npy(&ArrayData::F64(p.into_dyn()))?)?;
+            if let Some(path) = args.get(4) {
+                std::fs::write(path, io::encode_npy(&ArrayData::F64(flat.into_dyn()))?)?;
+            }
+        }
+        Some("isomap") => {
+            let bytes = std::fs::read(&args[1])?;
+            let ArrayData::F64(a) = io::decode(&bytes, None, &io::Limits::default())?.array else {
+                return Err("an f64 N × D array is needed".into());
+            };
+            let p: Array2<f64> = a.into_dimensionality()?;
+            let k = arg(&args, 2, 10);
+            let l: usize = arg(&args, 3, 0);
+            let started = Instant::now();
+            let r = isomap(
+                p.view(),
+                &IsomapOptions {
+                    neighbours: k,
+                    dimensions: 2,
+                    landmarks: (l > 0).then_some(l),
+                },
+                &control,
+            )?;
+            let secs = started.elapsed().as_secs_f64();
+            if let Some(out) = args.get(4) {
+                std::fs::write(
+                    out,
+                    io::encode_npy(&ArrayData::F64(r.embedding.coords.into_dyn()))?,
+                )?;
+            }
+            println!(
+                "{{\"tool\": \"geodex\", \"case\": \"isomap\", \"points\": {}, \"k\": {k}, \"landmarks\": {l}, \
+                 \"seconds\": {secs:.4}, \"residual_variance\": {:.6}, \"threads\": {threads}}}",
+                p.nrows(),
+                r.residual_variance
+            );
+        }
+        Some(case @ ("matrix" | "embed")) => {
+            let mesh = icosphere(arg(&args, 1, 7), 1.0);
+            let count = arg(&args, 2, 500);
+            let m = method(args.get(3).map_or("fast_marching", String::as_str));
+            let started = Instant::now();
+            let topo = Topology::new(&mesh);
+            let heat = match m {
+                MeshMethod::Heat => Some(HeatSolver::new(
+                    &mesh,
+                    &topo,
+                    &HeatOptions::default(),
+                    &control,
+                )?),
+                _ => None,
+            };
+            let setup = started.elapsed().as_secs_f64();
+            if case == "matrix" {
+                let t = Instant::now();
+                let l = landmarks(&mesh, &topo, count, &control)?;
+                let pick = t.elapsed().as_secs_f64();
+                let t = Instant::now();
+                let r = distance_rows(
+                    &mesh,
+                    &topo,
+                    &l,
+                    m,
+                    heat.as_ref(),
+                    Symmetry::Average,
+                    &control,
+                )?;
+                let rows = t.elapsed().as_secs_f64();
+                println!(
+                    "{{\"tool\": \"geodex\", \"case\": \"matrix\", \"vertices\": {}, \"landmarks\": {count}, \
+                     \"method\": \"{m:?}\", \"setup_s\": {setup:.3}, \"landmarks_s\": {pick:.3}, \"rows_s\": {rows:.3}, \
+                     \"total_s\": {:.3}, \"asymmetry\": {:.5}, \"threads\": {threads}}}",
+                    mesh.num_vertices(),
+                    started.elapsed().as_secs_f64(),
+                    r.asymmetry
+                );
+            } else {
+                let f = canonical_form(
+                    &mesh,
+                    &topo,
+                    &CanonicalOptions {
+                        method: m,
+                        landmarks: Some(count),
+                        ..Default::default()
+                    },
+                    heat.as_ref(),
+                    &control,
+                )?;
+                println!(
+                    "{{\"tool\": \"geodex\", \"case\": \"embed\", \"vertices\": {}, \"landmarks\": {count}, \
+                     \"method\": \"{m:?}\", \"total_s\": {:.3}, \"stress\": {:.5}, \"explained_variance\": {:.5}, \
+                     \"threads\": {threads}}}",
+                    mesh.num_vertices(),
+                    started.elapsed().as_secs_f64(),
+                    f.stress,
+                    f.explained_variance
+                );
+            }
+        }
+        _ => {
+            return Err(
+                "usage: shape_analysis roll|isomap|matrix|embed ... (see the file's docs)".into(),
+            )
+        }
+    }
+    Ok(())
+}
