@@ -109,6 +109,9 @@ pub fn farthest_point_sampling(
     let prep =
         matches!(options.method, MeshMethod::FastMarching).then(|| MarchPrep::new(mesh, topo));
     let graph = matches!(options.method, MeshMethod::Dijkstra).then(|| VertexGraph::new(mesh));
+    // Each per-sample solve polls the caller's flags (deadline, client gone,
+    // job cancel); progress is reported per sample below.
+    let inner = control.cancel_only();
     let mut samples = Vec::new();
     let mut next = first;
     loop {
@@ -122,15 +125,7 @@ pub fn farthest_point_sampling(
             (Some(prep), _) => {
                 let mut s = seeds(mesh, &src, None)?;
                 s[0].label = label;
-                march(
-                    mesh,
-                    prep,
-                    &s,
-                    None,
-                    f64::INFINITY,
-                    &mut field,
-                    &Control::new(),
-                )?;
+                march(mesh, prep, &s, None, f64::INFINITY, &mut field, &inner)?;
             }
             (_, Some(graph)) => local_dijkstra(mesh, graph, next, label, &mut field),
             _ => {
@@ -143,7 +138,7 @@ pub fn farthest_point_sampling(
                         ..Default::default()
                     },
                     heat,
-                    &Control::new(),
+                    &inner,
                 )?;
                 for v in 0..n {
                     if d.distance[v] < field.distance[v] {
@@ -201,5 +196,41 @@ fn local_dijkstra(mesh: &TriMesh, graph: &VertexGraph, s: u32, label: i32, f: &m
                 heap.push_or_decrease(u, c);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::mesh::shapes::icosphere;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    /// One sample (`count: 1`, first given) runs exactly one per-sample solve
+    /// and then stops without polling again: the run can only end in
+    /// `Cancelled` if that solve itself polled the caller's flag, raised 5 ms
+    /// into it (the exact solve of a 10k-vertex sphere takes far longer). A
+    /// fresh `Control::new()` there used to ignore the flag, freezing a pool
+    /// thread for the whole solve.
+    #[test]
+    fn a_per_sample_solve_polls_the_callers_flag() {
+        let mesh = icosphere(5, 1.0);
+        let topo = Topology::new(&mesh);
+        let flag = Arc::new(AtomicBool::new(false));
+        let raise = Arc::clone(&flag);
+        let raiser = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            raise.store(true, Ordering::Relaxed);
+        });
+        let options = SamplingOptions {
+            count: Some(1),
+            radius: None,
+            first: Some(0),
+            method: MeshMethod::Exact,
+        };
+        let control = Control::new().with_cancel(&flag);
+        let r = farthest_point_sampling(&mesh, &topo, &options, None, &control);
+        raiser.join().expect("raiser");
+        assert!(matches!(r, Err(MeshSolveError::Cancelled)), "{r:?}");
     }
 }
