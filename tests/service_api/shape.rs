@@ -124,7 +124,9 @@ async fn embed_returns_a_mesh_and_refuses_a_disconnected_one() {
     let ev = body["explained_variance"]
         .as_f64()
         .expect("explained_variance");
-    assert!(ev > 0.5 && ev < 1.2, "{ev}");
+    // Σ top-3 λ / tr B exceeds 1 when B has negative eigenvalues, as the
+    // geodesic distances of a sphere (not Euclidean) give: 1.24 measured.
+    assert!(ev > 0.5 && ev < 1.5, "{ev}");
     assert!(body["stress"].as_f64().expect("stress") < 0.3, "{body}");
     let meta = app.get(body["result"]["url"].as_str().expect("url")).await;
     let meta: serde_json::Value = meta.json().await.expect("json");

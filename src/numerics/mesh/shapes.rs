@@ -158,8 +158,8 @@ fn tube_unchecked(section: &[[f64; 2]], rings: usize, height: f64) -> TriMesh {
     let mut pos = Vec::with_capacity(sides * (rings + 1));
     for r in 0..=rings {
         let z = height * r as f64 / rings as f64;
-        for s in 0..sides {
-            pos.push([section[s][0], section[s][1], z]);
+        for p in section {
+            pos.push([p[0], p[1], z]);
         }
     }
     let id = |r: usize, s: usize| (r * sides + s % sides) as u32;

@@ -209,17 +209,9 @@ mod tests {
         let a = known(n, &vals);
         let top_d = dense(a.view(), 3).unwrap();
         let top_s = subspace(a.view(), 3, 1e-12, 500, &Control::new()).unwrap();
-        for k in 0..3 {
-            assert!(
-                (top_d.values[k] - vals[k]).abs() < 1e-10,
-                "{:?}",
-                top_d.values
-            );
-            assert!(
-                (top_s.values[k] - vals[k]).abs() < 1e-9,
-                "{:?}",
-                top_s.values
-            );
+        for (k, &want) in vals.iter().enumerate().take(3) {
+            assert!((top_d.values[k] - want).abs() < 1e-10, "{:?}", top_d.values);
+            assert!((top_s.values[k] - want).abs() < 1e-9, "{:?}", top_s.values);
             let c = top_d.vectors.column(k).dot(&top_s.vectors.column(k)).abs();
             assert!((c - 1.0).abs() < 1e-9, "vector {k}: |cos| = {c}");
         }

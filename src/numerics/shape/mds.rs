@@ -40,7 +40,8 @@ pub struct Embedding {
     pub coords: Array2<f64>,
     /// The top `d` eigenvalues of `B` (largest first).
     pub eigenvalues: Vec<f64>,
-    /// `Σ_{k≤d} λ_k / tr B`.
+    /// `Σ_{k≤d} λ_k / tr B`: above 1 when `B` has negative eigenvalues
+    /// (distances that are not Euclidean, such as geodesics on a sphere).
     pub explained_variance: f64,
 }
 
