@@ -242,3 +242,48 @@ proptest! {
         }
     }
 }
+
+/// Issue 20: coordinates whose squared lengths overflow or underflow, and
+/// faces far below the precision of the mesh's extent, are refused at
+/// reading with the reason and the way out; a mesh at an ordinary but
+/// unusual scale is accepted.
+#[test]
+fn unrepresentable_coordinates_are_refused_at_reading() {
+    let tri = |s: f64| {
+        obj_of(
+            &[[0.0, 0.0, 0.0], [s, 0.0, 0.0], [0.0, s, 0.0]],
+            &[[1, 2, 3]],
+        )
+    };
+    for (scale, what) in [(1e160, "overflow"), (1e-160, "underflow")] {
+        let err = read_mesh(tri(scale).as_bytes(), None, &limits()).unwrap_err();
+        let text = err.to_string();
+        assert!(
+            matches!(err, MeshIoError::Invalid(MeshError::Unrepresentable(_))),
+            "{text}"
+        );
+        assert!(text.contains(what) && text.contains("rescale"), "{text}");
+    }
+    // A well-shaped face 1e-14 across beside one 1 across: its shape is
+    // round-off at the mesh's scale. (Much smaller faces, like the frozen
+    // pool's 1e-159 beside 1e133, already fail the reader's area test and are
+    // dropped as degenerate.)
+    let mixed = obj_of(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1e-14, 0.0, 0.0],
+            [0.0, 1e-14, 0.0],
+        ],
+        &[[1, 2, 3], [1, 4, 5]],
+    );
+    let err = read_mesh(mixed.as_bytes(), None, &limits()).unwrap_err();
+    assert!(err.to_string().contains("face 1"), "{err}");
+    for scale in [1e-9, 1e9] {
+        assert!(
+            read_mesh(tri(scale).as_bytes(), None, &limits()).is_ok(),
+            "{scale}"
+        );
+    }
+}

@@ -311,6 +311,7 @@ impl RawMesh {
         {
             return Err(MeshError::NonFinite { vertex }.into());
         }
+        crate::numerics::mesh::check_scale(&self.positions, &self.triangles)?;
         let input_faces = self.triangles.len();
         let mut degenerate = 0;
         let mut duplicate = 0;
@@ -338,6 +339,7 @@ impl RawMesh {
             faces.push(f);
         }
         let mesh = TriMesh::new(self.positions, faces)?;
+        mesh.check_representable()?;
         let topology = Topology::new(&mesh);
         let report = MeshReport {
             input_faces,

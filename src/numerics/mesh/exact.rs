@@ -383,6 +383,22 @@ pub fn exact_distance_with_stats(
     Ok(p.finish())
 }
 
+/// Most steps (window and vertex pops) of one propagation before it is
+/// declared unsettled: 128 times the `O(n^1.5)` growth measured on
+/// icospheres (about `0.5·√n` windows per vertex: 197 at 164k vertices),
+/// plus a floor. No real mesh comes near it (at 164k vertices it allows
+/// ~10^10 steps, hours of work); it makes the propagation terminate on
+/// every input, deadline or not.
+fn step_budget(vertices: usize, faces: usize) -> usize {
+    let n = vertices as f64;
+    let steps = 128.0 * (vertices + faces) as f64 * (1.0 + n.sqrt()) + 1e6;
+    if steps >= usize::MAX as f64 {
+        usize::MAX
+    } else {
+        steps as usize
+    }
+}
+
 /// Frame of edge `k` of a face: its length `l`, and the third vertex at
 /// `(cx, cy)`, `cy >= 0`.
 #[derive(Debug, Clone, Copy)]
@@ -884,6 +900,7 @@ impl<'a> Propagation<'a> {
 
     fn run(&mut self, control: &Control<'_>) -> Result<(), MeshSolveError> {
         let mut pops = 0usize;
+        let budget = step_budget(self.mesh.num_vertices(), self.mesh.num_faces());
         loop {
             let wk = self.windows.peek_key();
             let vk = self.vertices.peek().map(|e| e.key);
@@ -909,6 +926,15 @@ impl<'a> Propagation<'a> {
             if pops.is_multiple_of(POLL) {
                 if control.is_cancelled() {
                     return Err(MeshSolveError::Cancelled);
+                }
+                if pops > budget {
+                    return Err(MeshSolveError::Numerical(format!(
+                        "the exact method's window propagation took {pops} steps without \
+                         settling, far beyond what a mesh of {} vertices needs (its lengths \
+                         span too many orders of magnitude, or its faces are degenerate); use \
+                         the method fast_marching or heat",
+                        self.mesh.num_vertices()
+                    )));
                 }
                 control.report(self.reached as f64 / self.reachable as f64);
             }
@@ -1152,6 +1178,48 @@ fn single_fan(faces: &[[u32; 3]], topo: &Topology, v: u32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Issue 20: a 7-vertex fan whose coordinates span 1e-160 to 1e133
+        /// (and near-duplicate vertices) used to propagate windows forever.
+        /// Every such mesh now ends: distances, or an error naming the
+        /// mesh, within the step budget.
+        #[test]
+        fn terminates_on_extreme_coordinate_scales(
+            exps in proptest::collection::vec(-160.0f64..133.0, 21),
+            signs in proptest::collection::vec(any::<bool>(), 21),
+            dup in 0usize..7,
+        ) {
+            let mut positions: Vec<[f64; 3]> = (0..7)
+                .map(|v| {
+                    std::array::from_fn(|a| {
+                        let i = 3 * v + a;
+                        let x = 10f64.powf(exps[i]);
+                        if signs[i] { x } else { -x }
+                    })
+                })
+                .collect();
+            // A near-duplicate of vertex `dup` (one ulp away).
+            positions[(dup + 1) % 7] = positions[dup].map(|c| c * (1.0 + f64::EPSILON));
+            let faces = (1..7u32).map(|k| [0, k, k % 6 + 1]).collect();
+            let mesh = TriMesh::new(positions, faces).expect("valid indices");
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let topo = Topology::new(&mesh);
+                let run = exact_distance(
+                    &mesh, &topo, &[SurfacePoint::Vertex(0)], f64::INFINITY, &Control::new(),
+                );
+                let _ = tx.send(run.map(|d| d.distance.iter().any(|x| x.is_nan())));
+            });
+            let ended = rx.recv_timeout(std::time::Duration::from_secs(60));
+            prop_assert!(ended.is_ok(), "the exact propagation did not end within 60 s");
+            if let Ok(Ok(has_nan)) = ended {
+                prop_assert!(!has_nan, "NaN distance");
+            }
+        }
+    }
 
     fn window(key: f64) -> Window {
         Window {

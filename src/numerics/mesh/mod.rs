@@ -53,7 +53,59 @@ pub enum MeshError {
     /// More vertices or faces than 32-bit indices allow.
     #[error("the mesh is too large ({0} elements)")]
     TooLarge(usize),
+    /// The coordinates span more orders of magnitude than `f64` lengths
+    /// can represent (see [`TriMesh::check_representable`]).
+    #[error("the mesh's coordinates cannot be represented meaningfully: {0}")]
+    Unrepresentable(String),
 }
+
+/// Largest coordinate magnitude and extent: squared lengths stay below
+/// `4·10^300`, well inside `f64` (overflow at `1.8·10^308`).
+pub const MAX_COORDINATE: f64 = 1e150;
+/// Smallest extent: squared lengths stay above `10^-300` (normal numbers).
+pub const MIN_EXTENT: f64 = 1e-150;
+/// The first half of [`TriMesh::check_representable`], for raw parts
+/// before degenerate faces are dropped: every coordinate of a vertex in
+/// `faces` within ±[`MAX_COORDINATE`], and their extent at least
+/// [`MIN_EXTENT`]. Returns the extent. Indices must be in range.
+pub fn check_scale(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Result<f64, MeshError> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for f in faces {
+        for &v in f {
+            let Some(p) = positions.get(v as usize) else {
+                continue;
+            };
+            for a in 0..3 {
+                if p[a].abs() > MAX_COORDINATE {
+                    return Err(MeshError::Unrepresentable(format!(
+                        "vertex {v} has coordinate {:e}, beyond ±{MAX_COORDINATE:e} (squared \
+                         lengths would overflow); rescale the mesh",
+                        p[a]
+                    )));
+                }
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+    }
+    if faces.is_empty() {
+        return Ok(0.0);
+    }
+    let extent = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+    if extent < MIN_EXTENT {
+        return Err(MeshError::Unrepresentable(format!(
+            "the mesh spans {extent:e}, below {MIN_EXTENT:e} (squared lengths would \
+             underflow); rescale the mesh"
+        )));
+    }
+    Ok(extent)
+}
+
+/// Smallest face (its longest edge) relative to the mesh's extent: about
+/// `10^4` units in the last place of the coordinates, below which a face's
+/// shape is round-off.
+pub const MIN_FACE_RELATIVE: f64 = 1e-12;
 
 /// A triangle mesh: vertex positions and faces (three vertex indices each).
 ///
@@ -103,6 +155,44 @@ impl TriMesh {
             }
         }
         Ok(Self { positions, faces })
+    }
+
+    /// Checks that lengths on this mesh can be computed in `f64`: every
+    /// coordinate at most [`MAX_COORDINATE`] in magnitude, the extent (the
+    /// diagonal of the bounding box of the vertices in faces) at least
+    /// [`MIN_EXTENT`], and the longest edge of every face at least
+    /// [`MIN_FACE_RELATIVE`] times the extent. A mesh that fails has
+    /// squared lengths that overflow or underflow, or faces whose shape is
+    /// lost in round-off: the solvers' results on it would be meaningless
+    /// (and the exact method's window propagation may not settle).
+    ///
+    /// # Examples
+    /// ```
+    /// use geodex::numerics::mesh::TriMesh;
+    /// let tiny = TriMesh::new(
+    ///     vec![[0., 0., 0.], [1e130, 0., 0.], [0., 1e130, 0.], [1e-159, 0., 0.], [0., 1e-159, 0.]],
+    ///     vec![[0, 1, 2], [0, 3, 4]],
+    /// )?;
+    /// assert!(tiny.check_representable().is_err());
+    /// # Ok::<(), geodex::numerics::mesh::MeshError>(())
+    /// ```
+    pub fn check_representable(&self) -> Result<(), MeshError> {
+        let extent = check_scale(&self.positions, &self.faces)?;
+        let dist = |a: [f64; 3], b: [f64; 3]| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        for (face, f) in self.faces.iter().enumerate() {
+            let p = f.map(|v| self.positions[v as usize]);
+            let longest = dist(p[0], p[1]).max(dist(p[1], p[2])).max(dist(p[2], p[0]));
+            if longest < MIN_FACE_RELATIVE * extent {
+                return Err(MeshError::Unrepresentable(format!(
+                    "face {face} is {longest:e} across in a mesh {extent:e} across (below \
+                     {MIN_FACE_RELATIVE:e} of it, its shape is round-off); weld its vertices \
+                     or remove it"
+                )));
+            }
+        }
+        Ok(())
     }
 
     /// A mesh from parts the caller guarantees valid (generators in
