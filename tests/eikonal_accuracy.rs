@@ -740,7 +740,7 @@ proptest! {
             let mut o = opts(order, fact).with_method(method);
             o.source_radius = radius;
             let out = run(&p, &o);
-            let front = InitialFront::build(&p, radius).unwrap();
+            let front = InitialFront::build(&p, radius, &Control::new()).unwrap();
             let seeds: Vec<usize> = front.cells.iter().map(|c| c.index).collect();
             let reach = reachable(&p, &seeds);
             let u = out.distance.as_slice().unwrap();

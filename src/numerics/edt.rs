@@ -226,7 +226,7 @@ fn squared_binary(
     control: &Control<'_>,
 ) -> Result<(Vec<f64>, Option<Vec<u32>>), EdtError> {
     squared_by_axes::<bool>(grid, None, features, control, |rows, width, h, d, f| {
-        row_sweeps(rows, width, h, mask, d, f)
+        row_sweeps(rows, width, h, mask, d, f, control)
     })
 }
 
@@ -241,9 +241,13 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
         Some(labels),
         features,
         control,
-        |rows, width, h, d, f| label_row_sweeps(rows, width, h, labels, d, f),
+        |rows, width, h, d, f| label_row_sweeps(rows, width, h, labels, d, f, control),
     )
 }
+
+/// Rows of a first-pass sweep between two polls of the cancel flag (the
+/// caller sees the flag after the pass and discards it).
+const POLL_ROWS: usize = 256;
 
 /// The squared transform, one axis at a time. The outermost axis goes
 /// first, swept over whole rows by `first_pass(rows, width, h, d, features)`
@@ -251,7 +255,8 @@ fn squared_multilabel<L: Copy + PartialEq + Send + Sync>(
 /// 1D distance along columns); then each other axis takes the lower
 /// envelope of the parabolas of the previous passes, among cells of equal
 /// label when `labels` is given. Progress after each axis; cancellation
-/// between axes.
+/// polled within each pass (every [`POLL_ROWS`] rows or line) and between
+/// axes.
 fn squared_by_axes<L: Copy + PartialEq + Send + Sync>(
     grid: &Grid,
     labels: Option<&[L]>,
@@ -273,6 +278,9 @@ fn squared_by_axes<L: Copy + PartialEq + Send + Sync>(
         &mut d,
         feat.as_deref_mut(),
     );
+    if control.is_cancelled() {
+        return Err(EdtError::Cancelled);
+    }
     control.report(1.0 / axes.len() as f64);
     for (k, &axis) in axes.iter().enumerate().skip(1) {
         if control.is_cancelled() {
@@ -309,6 +317,7 @@ fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
     labels: &[L],
     d: &mut [f64],
     feat: Option<&mut [u32]>,
+    control: &Control<'_>,
 ) {
     let sweep = |c0: usize,
                  mut dc: ndarray::ArrayViewMut2<'_, f64>,
@@ -320,6 +329,9 @@ fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
         let mut frun = vec![NO_FEATURE; if fc.is_some() { w } else { 0 }];
         dc.row_mut(0).fill(f64::INFINITY);
         for i in 1..rows {
+            if i % POLL_ROWS == 0 && control.is_cancelled() {
+                return;
+            }
             let (m, up) = (lab(i), lab(i - 1));
             let mut row = dc.row_mut(i);
             for (((v, r), &a), &b) in row.iter_mut().zip(run.iter_mut()).zip(m).zip(up) {
@@ -348,6 +360,9 @@ fn label_row_sweeps<L: Copy + PartialEq + Send + Sync>(
         run.fill(f64::INFINITY);
         frun.fill(NO_FEATURE);
         for i in (0..rows).rev() {
+            if i % POLL_ROWS == 0 && control.is_cancelled() {
+                return;
+            }
             let m = lab(i);
             let down = if i + 1 < rows { lab(i + 1) } else { m };
             let mut row = dc.row_mut(i);
@@ -400,6 +415,7 @@ fn row_sweeps(
     mask: &[bool],
     d: &mut [f64],
     feat: Option<&mut [u32]>,
+    control: &Control<'_>,
 ) {
     let sweep = |c0: usize,
                  mut dc: ndarray::ArrayViewMut2<'_, f64>,
@@ -409,6 +425,9 @@ fn row_sweeps(
         let mut run = vec![f64::INFINITY; w];
         let mut frun = vec![NO_FEATURE; if fc.is_some() { w } else { 0 }];
         for i in 0..rows {
+            if i % POLL_ROWS == 0 && control.is_cancelled() {
+                return;
+            }
             let m = &mask[i * width + c0..i * width + c0 + w];
             let mut row = dc.row_mut(i);
             for ((v, r), &inside) in row.iter_mut().zip(run.iter_mut()).zip(m) {
@@ -430,6 +449,9 @@ fn row_sweeps(
         // Backward sweep: the nearer of above and below, squared and scaled.
         run.fill(f64::INFINITY);
         for i in (0..rows).rev() {
+            if i % POLL_ROWS == 0 && control.is_cancelled() {
+                return;
+            }
             let mut row = dc.row_mut(i);
             match fc.as_mut() {
                 None => {

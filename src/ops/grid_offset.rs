@@ -157,6 +157,9 @@ impl Operation for GridOffsetRequest {
                     .filter(|&c| mask[c] == dilate && !blocked[c])
                     .map(|c| grid.unravel(c)[off..].to_vec())
                     .collect();
+                if control.is_cancelled() {
+                    return Err(OpError::Cancelled);
+                }
                 if cells.is_empty() {
                     // Nothing to grow from: the dilation is empty, the erosion keeps the shape.
                     let d = vec![f64::INFINITY; grid.len()];

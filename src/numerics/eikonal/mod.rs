@@ -295,7 +295,7 @@ pub fn solve(
     control: &Control<'_>,
 ) -> Result<EikonalOutput, EikonalError> {
     validate_options(options)?;
-    let front = InitialFront::build(problem, options.source_radius)?;
+    let front = InitialFront::build(problem, options.source_radius, control)?;
     match options.method {
         Method::FastMarching => fast_marching::solve(problem, &front, options, control),
         Method::FastSweeping => fast_sweeping::solve(problem, &front, options, control),

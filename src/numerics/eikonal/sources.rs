@@ -11,6 +11,10 @@
 use super::{EikonalError, EikonalProblem, Source};
 use crate::numerics::grid::Grid;
 use crate::numerics::metric::IsotropicCost;
+use crate::numerics::Control;
+
+/// Seed cells between two polls of the cancel flag.
+const POLL_CELLS: usize = 1 << 16;
 
 /// A cell whose value is prescribed before the solve starts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,7 +52,13 @@ impl InitialFront {
     ///
     /// Errors name the source: outside the grid, on a wall, a wrong number of
     /// coordinates, non-finite values.
-    pub fn build(problem: &EikonalProblem<'_>, radius: f64) -> Result<Self, EikonalError> {
+    /// Polls `control` every [`POLL_CELLS`] seed cells: a mask of millions
+    /// of cells as sources takes a while to seed.
+    pub fn build(
+        problem: &EikonalProblem<'_>,
+        radius: f64,
+        control: &Control<'_>,
+    ) -> Result<Self, EikonalError> {
         if problem.sources.is_empty() {
             return Err(EikonalError::NoSources);
         }
@@ -60,17 +70,11 @@ impl InitialFront {
         }
         let grid = &problem.grid;
         let cost = &problem.cost;
-        let mut best: std::collections::HashMap<usize, SeedCell> = Default::default();
+        // Every candidate, then the smallest value per cell (sort + dedup:
+        // a hash map of millions of cells was the slow part of seeding).
+        let mut all: Vec<SeedCell> = Vec::new();
         let mut points = Vec::new();
-        let mut put = |c: SeedCell| {
-            best.entry(c.index)
-                .and_modify(|old| {
-                    if c.value < old.value {
-                        *old = c;
-                    }
-                })
-                .or_insert(c);
-        };
+        let mut put = |c: SeedCell| all.push(c);
         for (index, source) in problem.sources.iter().enumerate() {
             let label = index as i32;
             let err = |reason: String| EikonalError::Source { index, reason };
@@ -125,6 +129,9 @@ impl InitialFront {
                         }
                     }
                     for (k, c) in cells.iter().enumerate() {
+                        if k % POLL_CELLS == POLL_CELLS - 1 && control.is_cancelled() {
+                            return Err(EikonalError::Cancelled);
+                        }
                         let c3 = grid
                             .index3(c)
                             .map_err(|e| err(format!("cells[{k}]: {e}")))?;
@@ -151,9 +158,13 @@ impl InitialFront {
                 }
             }
         }
-        let mut cells: Vec<SeedCell> = best.into_values().collect();
-        cells.sort_by_key(|c| c.index);
-        Ok(Self { cells, points })
+        if control.is_cancelled() {
+            return Err(EikonalError::Cancelled);
+        }
+        // Stable: among equal values at one cell, the first source wins.
+        all.sort_by(|a, b| a.index.cmp(&b.index).then(a.value.total_cmp(&b.value)));
+        all.dedup_by_key(|c| c.index);
+        Ok(Self { cells: all, points })
     }
 }
 
@@ -248,7 +259,7 @@ mod tests {
     fn off_grid_point_gets_exact_values_on_its_corners() {
         // Exact local solution: U(x) = W |x - p| with W = 2.
         let p = problem(&[4, 4], vec![Source::Point(vec![1.5, 1.25])]);
-        let f = InitialFront::build(&p, 0.0).unwrap();
+        let f = InitialFront::build(&p, 0.0, &Control::new()).unwrap();
         assert_eq!(f.cells.len(), 4);
         for c in &f.cells {
             let x = p.grid.unravel(c.index);
@@ -261,7 +272,7 @@ mod tests {
     fn sources_outside_or_on_walls_are_refused() {
         let p = problem(&[4, 4], vec![Source::Point(vec![0.0, 4.5])]);
         assert!(matches!(
-            InitialFront::build(&p, 1.5),
+            InitialFront::build(&p, 1.5, &Control::new()),
             Err(EikonalError::Source { index: 0, .. })
         ));
         let grid = Grid::unit(&[3, 3]).unwrap();
@@ -280,7 +291,7 @@ mod tests {
             ],
         };
         assert!(matches!(
-            InitialFront::build(&p, 1.5),
+            InitialFront::build(&p, 1.5, &Control::new()),
             Err(EikonalError::Source { index: 1, .. })
         ));
     }
@@ -299,7 +310,7 @@ mod tests {
             grid,
             sources: vec![Source::Point(vec![2.0, 1.4])],
         };
-        let f = InitialFront::build(&p, 2.0).unwrap();
+        let f = InitialFront::build(&p, 2.0, &Control::new()).unwrap();
         assert!(f.cells.iter().all(|c| p.grid.unravel(c.index)[2] < 2));
     }
 }

@@ -1,0 +1,379 @@
+//! Every solve stops when asked (issue 20, item 1): for every operation of
+//! the registry, an input built to be slow is run with a short deadline as
+//! a synchronous request (504, and the pool slot is free again within 1 s
+//! of the deadline), after a client disconnect (the slot is free within
+//! 1 s), and as a job with a time limit (failed `time-limit`) and with a
+//! cancel (`cancelled` within 1 s). An operation added to
+//! `ops::registry::ENTRIES` without a slow case here fails the test.
+
+use std::time::{Duration, Instant};
+
+use geodex::io::mesh::write::write_ply;
+use geodex::io::ArrayData;
+use geodex::numerics::mesh::shapes::icosphere;
+use ndarray::ArrayD;
+use serde_json::{json, Value};
+
+use crate::common::{spawn, TestApp};
+
+/// The sync deadline of the first server (seconds).
+const DEADLINE: f64 = 0.3;
+/// How long after the deadline (or the disconnect, or the cancel) the solve
+/// must have let go of its pool slot.
+const STOP_WITHIN: Duration = Duration::from_secs(1);
+
+async fn upload_mesh(app: &TestApp, level: u32) -> String {
+    let body = write_ply(&icosphere(level, 1.0), &[]);
+    let res = app
+        .client
+        .post(app.url("/v1/datasets"))
+        .header("content-type", "model/ply")
+        .body(body)
+        .send()
+        .await
+        .expect("upload");
+    assert_eq!(res.status(), 201);
+    let v: Value = res.json().await.expect("json");
+    v["id"].as_str().expect("id").to_string()
+}
+
+/// A disc image, `n × n`, values in [0, 1] (also a mask: non-zero inside).
+fn disc(n: usize) -> ArrayData {
+    let c = n as f64 / 2.0;
+    ArrayData::F64(ArrayD::from_shape_fn(ndarray::IxDyn(&[n, n]), |ix| {
+        let (x, y) = (ix[0] as f64 - c, ix[1] as f64 - c);
+        let r = (x * x + y * y).sqrt() / c;
+        if r < 0.9 {
+            (1.0 - r * r).sqrt()
+        } else {
+            0.0
+        }
+    }))
+}
+
+/// `(operation, route, body)`: one slow request per operation.
+async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
+    let n = 3000;
+    let image = app.upload(&disc(n)).await;
+    let small_image = app.upload(&disc(1000)).await;
+    let ArrayData::F64(lit) = disc(n) else {
+        unreachable!("disc is f64")
+    };
+    // Lit everywhere (shape from shading refuses shadowed anchors).
+    let shaded = app
+        .upload(&ArrayData::F64(lit.mapv(|v| 0.2 + 0.8 * v)))
+        .await;
+    // The EDT is linear and fast: it needs a larger mask to outlast a job's
+    // time limit plus a heartbeat.
+    let big_mask = app
+        .upload(&ArrayData::U8(ArrayD::from_shape_fn(
+            ndarray::IxDyn(&[6000, 6000]),
+            |ix| u8::from((ix[0] / 7 + ix[1] / 5) % 3 == 0),
+        )))
+        .await;
+    let empty = app
+        .upload(&ArrayData::U8(ArrayD::zeros(ndarray::IxDyn(&[n, n]))))
+        .await;
+    let mut cloud = Vec::with_capacity(20000 * 3);
+    let mut state = 1u64;
+    for _ in 0..20000 * 3 {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        cloud.push((state >> 11) as f64 / (1u64 << 53) as f64);
+    }
+    let points = app
+        .upload(&ArrayData::F64(
+            ArrayD::from_shape_vec(vec![20000, 3], cloud).expect("shape"),
+        ))
+        .await;
+    let mesh = upload_mesh(app, 6).await;
+    let big = json!({"constant": 1.0, "shape": [n, n]});
+    let src = json!([{"point": [1.0, 1.0]}]);
+    let far = json!([(n - 1) as f64, (n - 1) as f64]);
+    vec![
+        (
+            "grid.distance",
+            "/v1/grid/distance",
+            json!({"cost": big, "sources": src}),
+        ),
+        (
+            "grid.metric",
+            "/v1/grid/metric",
+            json!({"dataset": image, "design": {"kind": "vesselness", "scales": [2.0, 4.0, 8.0]}}),
+        ),
+        (
+            "grid.paths",
+            "/v1/grid/paths",
+            json!({"cost": big, "sources": src, "ends": [far]}),
+        ),
+        (
+            "grid.edt",
+            "/v1/grid/edt",
+            json!({"mask": big_mask, "features": false}),
+        ),
+        (
+            "grid.segment",
+            "/v1/grid/segment",
+            json!({"cost": big, "seeds": [{"label": 1, "point": [1.0, 1.0]}, {"label": 2, "point": far}]}),
+        ),
+        ("grid.skeleton", "/v1/grid/skeleton", json!({"mask": image})),
+        (
+            "grid.offset",
+            "/v1/grid/offset",
+            json!({"mask": image, "radius": 400.0, "metric": "geodesic", "cost": big}),
+        ),
+        (
+            "grid.plan",
+            "/v1/grid/plan",
+            json!({"obstacles": empty, "radius": 2.0, "start": [1.0, 1.0], "goal": far}),
+        ),
+        (
+            "grid.sample",
+            "/v1/grid/sample",
+            json!({"cost": big, "count": 20000}),
+        ),
+        (
+            "grid.mesh",
+            "/v1/grid/mesh",
+            json!({"dataset": small_image, "count": 20000}),
+        ),
+        (
+            "grid.shape_from_shading",
+            "/v1/grid/shape-from-shading",
+            json!({"image": shaded, "anchors": {"kind": "border"}}),
+        ),
+        (
+            "grid.tensor_distance",
+            "/v1/grid/tensor-distance",
+            json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),
+        ),
+        (
+            "grid.tensor_metric",
+            "/v1/grid/tensor-metric",
+            json!({"tensor": {"kind": "structure_tensor", "image": image, "sigma": 4.0, "rho": 8.0, "energy": 1.0, "anisotropy": 0.9}}),
+        ),
+        (
+            "mesh.distance",
+            "/v1/mesh/distance",
+            json!({"mesh": mesh, "sources": [{"vertex": 0}], "method": "exact"}),
+        ),
+        (
+            "mesh.voronoi",
+            "/v1/mesh/voronoi",
+            json!({"mesh": mesh, "sources": [{"vertex": 0}, {"vertex": 7}], "method": "exact"}),
+        ),
+        (
+            "mesh.paths",
+            "/v1/mesh/paths",
+            json!({"mesh": mesh, "sources": [{"vertex": 0}], "targets": [{"vertex": 9}], "method": "exact"}),
+        ),
+        (
+            "mesh.sample",
+            "/v1/mesh/sample",
+            json!({"mesh": mesh, "count": 200, "method": "exact"}),
+        ),
+        (
+            "mesh.distance_matrix",
+            "/v1/mesh/distance-matrix",
+            json!({"mesh": mesh, "landmarks": 200, "method": "exact"}),
+        ),
+        (
+            "mesh.embed",
+            "/v1/mesh/embed",
+            json!({"mesh": mesh, "landmarks": 200, "method": "exact"}),
+        ),
+        (
+            "points.isomap",
+            "/v1/points/isomap",
+            json!({"points": points, "k": 12, "landmarks": 1000}),
+        ),
+    ]
+}
+
+/// Solves waiting or running on this server's pool, from `/readyz`.
+async fn in_flight(app: &TestApp) -> u64 {
+    let res = app.get("/readyz").await;
+    if res.status() != 200 {
+        return u64::MAX; // not ready: the pool is full
+    }
+    let v: Value = res.json().await.expect("readyz");
+    v["running"].as_u64().unwrap_or(0) + v["queued"].as_u64().unwrap_or(0)
+}
+
+/// Waits until no solve runs; returns how long that took.
+async fn until_idle(app: &TestApp, op: &str) -> Duration {
+    let t = Instant::now();
+    while in_flight(app).await > 0 {
+        assert!(
+            t.elapsed() < Duration::from_secs(30),
+            "{op}: the solve never stopped"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    t.elapsed()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn every_operation_stops_at_its_deadline_on_disconnect_and_as_a_job() {
+    let app = spawn(|s| {
+        s.pool_threads = Some(1);
+        s.queue_capacity = Some(4);
+        s.request_timeout_secs = DEADLINE;
+        s.max_body_bytes = 512 << 20;
+    })
+    .await;
+    let cases = slow_cases(&app).await;
+    for e in geodex::ops::registry::ENTRIES {
+        assert!(
+            cases.iter().any(|c| c.0 == e.name),
+            "operation {} has no slow case in tests/service_api/deadlines.rs",
+            e.name
+        );
+    }
+    // Synchronous requests: 504 at the deadline, the slot free soon after.
+    for (op, route, body) in &cases {
+        until_idle(&app, op).await;
+        let t = Instant::now();
+        let res = app
+            .client
+            .post(app.url(route))
+            .json(body)
+            .send()
+            .await
+            .expect("post");
+        let status = res.status().as_u16();
+        let text = res.text().await.unwrap_or_default();
+        assert_eq!(status, 504, "{op}: {text}");
+        let freed = until_idle(&app, op).await + t.elapsed();
+        assert!(
+            freed < Duration::from_secs_f64(DEADLINE) + STOP_WITHIN,
+            "{op}: the slot was freed {freed:?} after the request (deadline {DEADLINE} s)"
+        );
+    }
+
+    // A client that gives up: the solve stops within a second.
+    let patient = spawn(|s| {
+        s.pool_threads = Some(1);
+        s.request_timeout_secs = 600.0;
+        s.max_body_bytes = 512 << 20;
+    })
+    .await;
+    let cases = slow_cases(&patient).await;
+    for (op, route, body) in &cases {
+        until_idle(&patient, op).await;
+        let quitter = reqwest::Client::builder()
+            .timeout(Duration::from_millis(300))
+            .build()
+            .expect("client");
+        let t = Instant::now();
+        let res = quitter.post(patient.url(route)).json(body).send().await;
+        assert!(
+            res.is_err(),
+            "{op}: answered within 300 ms; not a slow case"
+        );
+        let gone = t.elapsed();
+        let freed = until_idle(&patient, op).await;
+        assert!(
+            freed < STOP_WITHIN,
+            "{op}: the solve ran {freed:?} after its client left (at {gone:?})"
+        );
+    }
+
+    // Jobs: a time limit ends the job `failed`, a cancel ends it `cancelled`.
+    for (op, _, body) in &cases {
+        let submit = |limit: Option<f64>| {
+            let mut job = json!({"operation": op, "params": body});
+            if let Some(l) = limit {
+                job["time_limit_secs"] = json!(l);
+            }
+            job
+        };
+        let res = patient
+            .client
+            .post(patient.url("/v1/jobs"))
+            .json(&submit(Some(0.3)))
+            .send()
+            .await
+            .expect("submit");
+        assert_eq!(res.status(), 202, "{op}");
+        let id = res.json::<Value>().await.expect("json")["id"]
+            .as_str()
+            .expect("id")
+            .to_string();
+        let t = Instant::now();
+        let job = loop {
+            let j: Value = patient
+                .get(&format!("/v1/jobs/{id}"))
+                .await
+                .json()
+                .await
+                .expect("job");
+            if ["failed", "succeeded", "cancelled"].contains(&j["state"].as_str().unwrap_or("")) {
+                break j;
+            }
+            assert!(t.elapsed() < Duration::from_secs(30), "{op}: {j}");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        };
+        assert_eq!(job["state"], "failed", "{op}: {job}");
+        assert_eq!(
+            job["error"]["type"], "https://geodex.dev/problems/time-limit",
+            "{op}: {job}"
+        );
+        until_idle(&patient, op).await;
+
+        let res = patient
+            .client
+            .post(patient.url("/v1/jobs"))
+            .json(&submit(None))
+            .send()
+            .await
+            .expect("submit");
+        let id = res.json::<Value>().await.expect("json")["id"]
+            .as_str()
+            .expect("id")
+            .to_string();
+        let t = Instant::now();
+        while patient
+            .get(&format!("/v1/jobs/{id}"))
+            .await
+            .json::<Value>()
+            .await
+            .expect("job")["state"]
+            != "running"
+        {
+            assert!(t.elapsed() < Duration::from_secs(30), "{op}: never ran");
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        let cancelled_at = Instant::now();
+        let res = patient
+            .client
+            .post(patient.url(&format!("/v1/jobs/{id}/cancel")))
+            .json(&json!({}))
+            .send()
+            .await
+            .expect("cancel");
+        assert!(res.status().is_success(), "{op}: cancel {}", res.status());
+        loop {
+            let j: Value = patient
+                .get(&format!("/v1/jobs/{id}"))
+                .await
+                .json()
+                .await
+                .expect("job");
+            if j["state"] == "cancelled" {
+                break;
+            }
+            assert!(
+                cancelled_at.elapsed() < Duration::from_secs(30),
+                "{op}: not cancelled: {j}"
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let freed = until_idle(&patient, op).await + cancelled_at.elapsed();
+        assert!(
+            freed < STOP_WITHIN + Duration::from_millis(500),
+            "{op}: the cancelled job held the pool {freed:?} after the cancel"
+        );
+    }
+}
