@@ -46,6 +46,49 @@ fn first_channel<T: Copy>(raw: &[T], channels: usize) -> Vec<T> {
     raw.iter().step_by(channels).copied().collect()
 }
 
+/// The PNG signature.
+const PNG_SIGNATURE: &[u8; 8] = b"\x89PNG\r\n\x1a\n";
+
+/// The PNG with only the chunks that make its pixels: the critical chunks
+/// (`IHDR`, `PLTE`, `IDAT`, `IEND`: an upper-case first letter) and
+/// `tRNS`. Every other ancillary chunk (`iCCP`, `zTXt`, `iTXt` can hold
+/// compressed payloads of any size, and the decoder inflates some of them)
+/// is dropped before decoding, so that a small file cannot make the decoder
+/// allocate gigabytes for metadata that a distance map never uses.
+///
+/// `None` when nothing needs dropping, or when the chunk structure is broken
+/// (the decoder then reports the damage itself).
+fn png_pixels_only(bytes: &[u8]) -> Option<Vec<u8>> {
+    let body = bytes.strip_prefix(PNG_SIGNATURE)?;
+    let mut keep: Vec<&[u8]> = Vec::new();
+    let mut dropped = false;
+    let mut rest = body;
+    while !rest.is_empty() {
+        let len = usize::try_from(u32::from_be_bytes(rest.get(..4)?.try_into().ok()?)).ok()?;
+        let total = len.checked_add(12)?;
+        let chunk = rest.get(..total)?;
+        let kind = &chunk[4..8];
+        if kind[0].is_ascii_uppercase() || kind == b"tRNS" {
+            keep.push(chunk);
+        } else {
+            dropped = true;
+        }
+        rest = &rest[total..];
+        if kind == b"IEND" {
+            break;
+        }
+    }
+    if !dropped {
+        return None;
+    }
+    let mut out = Vec::with_capacity(8 + keep.iter().map(|c| c.len()).sum::<usize>());
+    out.extend_from_slice(PNG_SIGNATURE);
+    for c in keep {
+        out.extend_from_slice(c);
+    }
+    Some(out)
+}
+
 /// Decodes a PNG or JPEG file.
 pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<ArrayData, IoError> {
     let image_format = match format {
@@ -72,6 +115,13 @@ pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<Ar
     if format == Format::Jpeg {
         jpeg_complete(bytes).map_err(|reason| IoError::corrupt(format, reason))?;
     }
+    let stripped;
+    let bytes = if format == Format::Png {
+        stripped = png_pixels_only(bytes);
+        stripped.as_deref().unwrap_or(bytes)
+    } else {
+        bytes
+    };
     let mut reader = ImageReader::with_format(Cursor::new(bytes), image_format);
     let side = u32::try_from(limits.max_cells).unwrap_or(u32::MAX);
     let mut image_limits = image::Limits::default();
@@ -315,6 +365,46 @@ mod tests {
         let sum: f32 = LUMA_709.iter().sum();
         assert!((sum - 1.0).abs() < 1e-6, "{sum}");
         assert_eq!(luma(&[255u8, 255, 255, 7], 4), vec![255.0 * sum]);
+    }
+
+    /// A chunk with its length and CRC.
+    fn chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+        let mut crc = flate2::Crc::new();
+        crc.update(kind);
+        crc.update(data);
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend_from_slice(kind);
+        c.extend_from_slice(data);
+        c.extend_from_slice(&crc.sum().to_be_bytes());
+        c
+    }
+
+    #[test]
+    fn ancillary_chunks_are_dropped_before_decoding() {
+        let a = ArrayData::F64(
+            ArrayD::from_shape_vec(vec![2, 3], vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0]).expect("shape"),
+        );
+        let png = encode_png16(&a, None).expect("encodes");
+        // An iCCP profile that inflates to 64 MiB, and a text chunk, after IHDR.
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+        std::io::Write::write_all(&mut z, &vec![0u8; 64 << 20]).expect("compresses");
+        let mut profile = b"bomb\0\0".to_vec();
+        profile.extend(z.finish().expect("compresses"));
+        let ihdr_end = 8 + 12 + 13;
+        let mut bomb = png[..ihdr_end].to_vec();
+        bomb.extend(chunk(b"iCCP", &profile));
+        bomb.extend(chunk(b"tEXt", b"Comment\0hello"));
+        bomb.extend_from_slice(&png[ihdr_end..]);
+        let stripped = png_pixels_only(&bomb).expect("drops the two chunks");
+        assert_eq!(stripped, png, "only the pixel chunks remain, byte for byte");
+        assert_eq!(
+            png_pixels_only(&png),
+            None,
+            "nothing to drop in a plain PNG"
+        );
+        let back = decode(&bomb, Format::Png, &Limits::default()).expect("decodes");
+        let plain = decode(&png, Format::Png, &Limits::default()).expect("decodes");
+        assert_eq!(back, plain);
     }
 
     #[test]
