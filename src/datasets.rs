@@ -26,6 +26,7 @@ use crate::io::mesh::{MeshFormat, MeshReport};
 use crate::io::{self, ArrayData, DType, Format, IoError, Limits};
 use crate::ops::InputArray;
 
+pub mod cache;
 pub mod inputs;
 pub mod mesh;
 
@@ -171,7 +172,8 @@ pub struct StoreConfig {
     pub quota_bytes: u64,
     /// Lifetime of a dataset.
     pub ttl: Duration,
-    /// Largest total size of cached decoded arrays.
+    /// Largest total size of what is kept decoded in memory: arrays,
+    /// meshes with their topology, heat factorisations (one budget).
     pub cache_bytes: usize,
     /// Limits applied when reading stored files back.
     pub limits: Limits,
@@ -183,21 +185,14 @@ struct Index {
     used: u64,
 }
 
-#[derive(Debug, Default)]
-struct Cache {
-    entries: HashMap<String, (InputArray, u64)>,
-    bytes: usize,
-    tick: u64,
-}
-
 /// The dataset store; share it as `Arc<DatasetStore>`.
 #[derive(Debug)]
 pub struct DatasetStore {
     root: PathBuf,
     config: StoreConfig,
     index: Mutex<Index>,
-    cache: Mutex<Cache>,
-    meshes: mesh::MeshCache,
+    /// Decoded arrays, meshes and heat factorisations, in one byte budget.
+    memory: cache::MemoryCache,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -250,10 +245,9 @@ impl DatasetStore {
         }
         Ok(Self {
             root,
-            config,
             index: Mutex::new(index),
-            cache: Mutex::new(Cache::default()),
-            meshes: mesh::MeshCache::default(),
+            memory: cache::MemoryCache::new(config.cache_bytes),
+            config,
         })
     }
 
@@ -408,14 +402,10 @@ impl DatasetStore {
                 reason: format!("dataset '{id}' is a mesh, not an array"),
             }));
         }
+        if let Some(cache::CacheValue::Array(input)) =
+            self.memory.get(&cache::CacheKey::Array(id.to_string()))
         {
-            let mut cache = lock(&self.cache);
-            cache.tick += 1;
-            let tick = cache.tick;
-            if let Some((input, used)) = cache.entries.get_mut(id) {
-                *used = tick;
-                return Ok(input.clone());
-            }
+            return Ok(input);
         }
         let bytes = self.read_npy_blocking(id)?;
         let decoded = io::decode(&bytes, Some(Format::Npy), &self.config.limits)?;
@@ -428,28 +418,16 @@ impl DatasetStore {
     }
 
     fn cache_insert(&self, id: &str, input: &InputArray) {
-        let size = input.array.nbytes();
-        if size > self.config.cache_bytes {
-            return;
-        }
-        let mut cache = lock(&self.cache);
-        while cache.bytes + size > self.config.cache_bytes {
-            let oldest = cache
-                .entries
-                .iter()
-                .min_by_key(|(_, (_, t))| *t)
-                .map(|(k, _)| k.clone());
-            match oldest.and_then(|k| cache.entries.remove(&k)) {
-                Some((old, _)) => cache.bytes -= old.array.nbytes(),
-                None => break,
-            }
-        }
-        cache.tick += 1;
-        let tick = cache.tick;
-        if let Some((old, _)) = cache.entries.insert(id.into(), (input.clone(), tick)) {
-            cache.bytes -= old.array.nbytes();
-        }
-        cache.bytes += size;
+        self.memory.insert(
+            cache::CacheKey::Array(id.to_string()),
+            cache::CacheValue::Array(input.clone()),
+            input.array.nbytes(),
+        );
+    }
+
+    /// Bytes of decoded arrays, meshes and factorisations held in memory.
+    pub fn cached_bytes(&self) -> usize {
+        self.memory.bytes()
     }
 
     /// Deletes a dataset (blocking).
@@ -463,13 +441,7 @@ impl DatasetStore {
             index.used = index.used.saturating_sub(meta.byte_size);
             meta
         };
-        {
-            let mut cache = lock(&self.cache);
-            if let Some((old, _)) = cache.entries.remove(id) {
-                cache.bytes -= old.array.nbytes();
-            }
-        }
-        self.meshes.forget(id);
+        self.memory.forget(id);
         std::fs::remove_dir_all(self.root.join(id))?;
         if meta.expires_at <= Utc::now() {
             return Err(StoreError::NotFound(id.into()));

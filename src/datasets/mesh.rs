@@ -2,13 +2,14 @@
 //! `distance` and `label` of results) beside `meta.json`; decoded meshes and
 //! their topology are cached, and so are heat-method factorisations, keyed
 //! by dataset id and time-step factor `m`, so that repeated heat queries on
-//! one mesh cost two solves each.
+//! one mesh cost two solves each; both count against the store's one
+//! memory budget ([`super::cache::MemoryCache`]).
 
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use chrono::{DateTime, Utc};
 
+use super::cache::{CacheKey, CacheValue};
 use super::{lock, new_id, DatasetKind, DatasetMeta, DatasetStore, SourceFormat, StoreError};
 use crate::io::mesh::write::{write_ply, VertexProperty};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits, MeshReport};
@@ -17,28 +18,16 @@ use crate::numerics::mesh::{HeatSolver, TriMesh};
 
 pub use crate::ops::spec::mesh::MeshInput;
 
-/// Most meshes and factorisations kept in memory.
-const MESH_CACHE_ENTRIES: usize = 8;
-const HEAT_CACHE_ENTRIES: usize = 4;
-
-type HeatSlot = Arc<Mutex<Option<Arc<HeatSolver>>>>;
-/// Entries with their last-use tick, and the clock.
-type Lru<K, V> = Mutex<(HashMap<K, (V, u64)>, u64)>;
-
-/// Caches of decoded meshes and heat factorisations (least recently used out).
-#[derive(Debug, Default)]
-pub struct MeshCache {
-    meshes: Lru<String, Arc<MeshInput>>,
-    /// One slot per (id, m bits): concurrent requests for the same
-    /// factorisation wait for one build instead of racing.
-    heat: Lru<(String, u64), HeatSlot>,
-}
-
-impl MeshCache {
-    pub(super) fn forget(&self, id: &str) {
-        lock(&self.meshes).0.remove(id);
-        lock(&self.heat).0.retain(|k, _| k.0 != id);
-    }
+/// Approximate heap bytes of a decoded mesh and its topology (cache
+/// accounting): positions and faces, the half-edge and vertex-face tables,
+/// the components.
+fn mesh_bytes(input: &MeshInput) -> usize {
+    let (v, f) = (input.mesh.num_vertices(), input.mesh.num_faces());
+    let t = &input.topology;
+    v * 24
+        + f * 12
+        + (t.opposite.len() + t.vertex_face_offsets.len() + t.vertex_faces.len()) * 4
+        + t.component.len() * 4
 }
 
 impl DatasetStore {
@@ -112,14 +101,9 @@ impl DatasetStore {
     /// The decoded mesh of a live dataset (blocking), cached.
     pub fn load_mesh_blocking(&self, id: &str) -> Result<Arc<MeshInput>, StoreError> {
         let meta = self.meta(id)?;
-        {
-            let mut c = lock(&self.meshes.meshes);
-            c.1 += 1;
-            let tick = c.1;
-            if let Some((m, t)) = c.0.get_mut(id) {
-                *t = tick;
-                return Ok(m.clone());
-            }
+        let key = CacheKey::Mesh(id.to_string());
+        if let Some(CacheValue::Mesh(m)) = self.memory.get(&key) {
+            return Ok(m);
         }
         let bytes = self.read_mesh_file_blocking(id)?;
         let limits = MeshLimits::default();
@@ -130,19 +114,9 @@ impl DatasetStore {
             topology: loaded.topology,
             report: meta.mesh.unwrap_or(loaded.report),
         });
-        let mut c = lock(&self.meshes.meshes);
-        if c.0.len() >= MESH_CACHE_ENTRIES {
-            if let Some(k) =
-                c.0.iter()
-                    .min_by_key(|(_, (_, t))| *t)
-                    .map(|(k, _)| k.clone())
-            {
-                c.0.remove(&k);
-            }
-        }
-        c.1 += 1;
-        let tick = c.1;
-        c.0.insert(id.to_string(), (input.clone(), tick));
+        let bytes = mesh_bytes(&input);
+        self.memory
+            .insert(key, CacheValue::Mesh(Arc::clone(&input)), bytes);
         Ok(input)
     }
 
@@ -155,32 +129,16 @@ impl DatasetStore {
         m: f64,
         build: impl FnOnce() -> Result<HeatSolver, E>,
     ) -> Result<(Arc<HeatSolver>, bool), E> {
-        let slot = {
-            let mut c = lock(&self.meshes.heat);
-            c.1 += 1;
-            let tick = c.1;
-            let key = (id.to_string(), m.to_bits());
-            if !c.0.contains_key(&key) && c.0.len() >= HEAT_CACHE_ENTRIES {
-                if let Some(k) =
-                    c.0.iter()
-                        .min_by_key(|(_, (_, t))| *t)
-                        .map(|(k, _)| k.clone())
-                {
-                    c.0.remove(&k);
-                }
-            }
-            let entry =
-                c.0.entry(key)
-                    .or_insert_with(|| (HeatSlot::default(), tick));
-            entry.1 = tick;
-            entry.0.clone()
-        };
+        let key = CacheKey::Heat(id.to_string(), m.to_bits());
+        let slot = self.memory.heat_slot(key.clone());
         let mut guard = lock(&slot);
         if let Some(s) = guard.as_ref() {
             return Ok((s.clone(), true));
         }
         let solver = Arc::new(build()?);
         *guard = Some(solver.clone());
+        drop(guard);
+        self.memory.resize(&key, solver.approx_bytes());
         Ok((solver, false))
     }
 
