@@ -38,6 +38,7 @@ pub struct Application {
     listener: TcpListener,
     router: axum::Router,
     state: AppState,
+    limits: http::server::ServerLimits,
     grace: Duration,
     sweep_every: Duration,
     shutdown: Signal,
@@ -105,6 +106,11 @@ impl Application {
             listener,
             router,
             state,
+            limits: http::server::ServerLimits {
+                header_timeout: secs(settings.header_timeout_secs),
+                body_timeout: secs(settings.body_timeout_secs),
+                max_connections: settings.max_connections.max(1),
+            },
             grace: Duration::from_secs(settings.shutdown_grace_secs),
             sweep_every: Duration::from_secs((ttl / 4).clamp(1, 300)),
             shutdown: Box::pin(shutdown_signal()),
@@ -147,7 +153,7 @@ impl Application {
             stop_jobs.begin_shutdown();
             let _ = stop_tx.send(true);
         };
-        let server = axum::serve(self.listener, self.router).with_graceful_shutdown(signal);
+        let server = http::server::serve(self.listener, self.router, self.limits, signal);
         let grace = self.grace;
         let mut stop_rx = stop_rx;
         let deadline = async move {
@@ -209,6 +215,12 @@ async fn shutdown_signal() {
         () = ctrl_c => {},
         () = term => {},
     }
+}
+
+/// A duration from seconds given on the command line (negative: zero;
+/// non-finite or huge: no limit in practice).
+fn secs(s: f64) -> Duration {
+    Duration::try_from_secs_f64(s.max(0.0)).unwrap_or(Duration::from_secs(u32::MAX.into()))
 }
 
 /// Runs the service until SIGTERM or Ctrl-C (the `geodex serve` command).

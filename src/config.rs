@@ -29,6 +29,19 @@ pub struct ServeArgs {
     /// Largest request body in bytes (uploads, multipart forms, JSON).
     #[arg(long, env = "GEODEX_MAX_BODY_BYTES", default_value_t = 256 << 20)]
     pub max_body_bytes: usize,
+    /// Seconds a client may take to send a request's headers; also how long
+    /// an idle keep-alive connection is kept open.
+    #[arg(long, env = "GEODEX_HEADER_TIMEOUT_SECS", default_value_t = 10.0)]
+    pub header_timeout_secs: f64,
+    /// Seconds a request body may stall (no bytes arriving) before the
+    /// request is answered 408 and the connection closed.
+    #[arg(long, env = "GEODEX_BODY_TIMEOUT_SECS", default_value_t = 30.0)]
+    pub body_timeout_secs: f64,
+    /// Open connections at most. At the cap a new connection evicts the
+    /// oldest one with no request in progress, or is answered 503 when
+    /// every connection is busy. Lowered to fit the open-file limit.
+    #[arg(long, env = "GEODEX_MAX_CONNECTIONS", default_value_t = 4096)]
+    pub max_connections: usize,
     /// Largest grid or array, in cells.
     #[arg(long, env = "GEODEX_MAX_CELLS", default_value_t = 512 * 512 * 512)]
     pub max_cells: usize,
@@ -105,6 +118,9 @@ impl Default for ServeArgs {
             queue_capacity: None,
             request_timeout_secs: 60.0,
             max_body_bytes: 256 << 20,
+            header_timeout_secs: 10.0,
+            body_timeout_secs: 30.0,
+            max_connections: 4096,
             max_cells: 512 * 512 * 512,
             storage_quota_bytes: 8 << 30,
             dataset_ttl_secs: 24 * 3600,

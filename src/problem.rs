@@ -47,6 +47,8 @@ pub enum Kind {
     TooLarge,
     /// 415: the body's media type is not accepted here.
     UnsupportedMediaType,
+    /// 408: the request body stopped arriving (see `--body-timeout-secs`).
+    RequestTimeout,
     /// 409: a job was cancelled before it finished.
     Cancelled,
     /// 409: a job already ended (it cannot be cancelled).
@@ -77,6 +79,7 @@ impl Kind {
         Kind::NotAcceptable,
         Kind::TooLarge,
         Kind::UnsupportedMediaType,
+        Kind::RequestTimeout,
         Kind::Cancelled,
         Kind::JobFinished,
         Kind::JobNotSucceeded,
@@ -106,6 +109,7 @@ impl Kind {
                 "The media type of the body is not supported",
                 415,
             ),
+            Kind::RequestTimeout => ("request-timeout", "The request body stopped arriving", 408),
             Kind::Cancelled => ("cancelled", "The job was cancelled", 409),
             Kind::JobFinished => ("job-finished", "The job already ended", 409),
             Kind::JobNotSucceeded => ("job-not-succeeded", "The job has no results", 409),
@@ -250,6 +254,11 @@ impl ApiError {
     /// 413: the body or the array is larger than the limits.
     pub fn too_large(field: &str, detail: impl Into<String>) -> Self {
         Self::of(Kind::TooLarge, detail).with_field(field)
+    }
+
+    /// 408: the body stalled for longer than the body timeout.
+    pub fn request_timeout(detail: impl Into<String>) -> Self {
+        Self::of(Kind::RequestTimeout, detail).with_field("body")
     }
 
     /// 415: the body's media type is not accepted here.

@@ -32,6 +32,10 @@ pub const QUEUE_DEPTH: &str = "geodex_pool_queue_depth";
 pub const IN_FLIGHT: &str = "geodex_pool_in_flight";
 /// Solves refused because the pool was full.
 pub const REJECTED: &str = "geodex_pool_rejected_total";
+/// Connections closed to make room at the connection cap (the oldest idle).
+pub const HTTP_CONNECTIONS_EVICTED: &str = "geodex_http_connections_evicted_total";
+/// Connections refused with a 503 at the cap (every connection busy).
+pub const HTTP_CONNECTIONS_REFUSED: &str = "geodex_http_connections_refused_total";
 
 /// Metric: jobs in each state (gauge, label `state`), from the database.
 pub const JOBS: &str = "geodex_jobs";

@@ -2,14 +2,14 @@
 //!
 //! Order, outermost first: request id (set), trace span, request id
 //! (propagate), CORS, request metrics, problem finalizer, gzip, panic catcher,
-//! body limit.
+//! declared length (413 before reading), body limit.
 
 use std::time::Instant;
 
 use axum::extract::{MatchedPath, Request};
 use axum::http::{HeaderName, HeaderValue, Method};
 use axum::middleware::{self, Next};
-use axum::response::Response;
+use axum::response::{IntoResponse, Response};
 use axum::Router;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::compression::predicate::{DefaultPredicate, NotForContentType, Predicate};
@@ -90,13 +90,39 @@ fn compression() -> CompressionLayer<impl Predicate> {
         )
 }
 
+/// Answers 413 at once when the declared `Content-Length` exceeds the body
+/// limit, before a byte of the body is read (the body limit itself is
+/// enforced as the bytes arrive, for bodies sent without a length).
+async fn declared_length(req: Request, next: Next, limit: usize) -> Response {
+    let declared = req
+        .headers()
+        .get(axum::http::header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    match declared {
+        Some(n) if n > limit as u64 => crate::problem::ApiError::too_large(
+            "body",
+            format!(
+                "the body declares {n} bytes, more than the limit of {limit} \
+                 (the server's --max-body-bytes); nothing was read"
+            ),
+        )
+        .into_response(),
+        _ => next.run(req).await,
+    }
+}
+
 /// Wraps the router in every layer.
 pub fn apply(app: Router, settings: &ServeArgs) -> Router {
     let x_request_id = HeaderName::from_static("x-request-id");
+    let max_body = settings.max_body_bytes;
     let app = app
         .layer(axum::extract::DefaultBodyLimit::max(
             settings.max_body_bytes,
         ))
+        .layer(middleware::from_fn(move |req: Request, next: Next| {
+            declared_length(req, next, max_body)
+        }))
         .layer(CatchPanicLayer::custom(error::panic_response))
         .layer(compression())
         .layer(middleware::from_fn(error::finalize))

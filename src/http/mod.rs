@@ -9,6 +9,7 @@
 //! * [`openapi`]: document metadata and reusable error responses.
 //! * [`operation`]: the generic synchronous path of an operation (load inputs, run on the pool, store outputs).
 //! * [`layers`]: middleware (request metrics, the tower stack).
+//! * [`server`]: the accept loop (header and body timeouts, the connection cap).
 //! * [`routes`]: one module per group of endpoints.
 
 pub mod error;
@@ -17,6 +18,7 @@ pub mod layers;
 pub mod openapi;
 pub mod operation;
 pub mod routes;
+pub mod server;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

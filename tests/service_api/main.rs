@@ -2,6 +2,8 @@
 //! a free port (with its own data directory) and talks HTTP to it.
 
 mod common;
+mod connections;
+mod deadlines;
 mod errors;
 mod flow;
 mod load;

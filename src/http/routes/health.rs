@@ -52,13 +52,14 @@ pub async fn healthz() -> Json<Health> {
     Json(Health { status: "ok" })
 }
 
-/// Readiness: the pool exists, storage is usable and the service is not draining.
+/// Readiness: storage is usable, the service is not draining, and the pool
+/// has a free admission slot.
 #[utoipa::path(
     get,
     path = "/readyz",
     tag = "operations",
     summary = "Readiness probe",
-    description = "Answers 200 when the solver pool and the dataset storage are usable, and 503 while the service drains after SIGTERM or when storage is unusable.",
+    description = "Answers 200 when the solver pool can admit a solve and the dataset storage is usable, and 503 while the service drains after SIGTERM, when storage is unusable, or while every admission slot of the pool is taken (a long or stuck solve: new work would be refused).",
     responses(
         (status = 200, description = "Ready to take requests.", body = Ready, example = json!({
             "status": "ready", "pool_threads": 8, "pool_capacity": 16, "queued": 0, "running": 1,
@@ -79,13 +80,29 @@ pub async fn readyz(State(state): State<AppState>) -> Result<Json<Ready>, ApiErr
     if !usable {
         return Err(ApiError::busy("the dataset storage is not usable", 5));
     }
+    let (queued, running, capacity) = (
+        state.pool.waiting(),
+        state.pool.running(),
+        state.pool.capacity(),
+    );
+    if queued + running >= capacity {
+        // A load balancer should send new work elsewhere: this replica
+        // would answer it 503 (a stuck or long solve holds every slot).
+        return Err(ApiError::busy(
+            format!(
+                "the solver pool is full: {running} running and {queued} waiting of {capacity} \
+                 admitted at once"
+            ),
+            1,
+        ));
+    }
     let (used, quota) = state.store.usage();
     Ok(Json(Ready {
         status: "ready",
         pool_threads: state.pool.threads(),
         pool_capacity: state.pool.capacity(),
-        queued: state.pool.waiting(),
-        running: state.pool.running(),
+        queued,
+        running,
         storage_used_bytes: used,
         storage_quota_bytes: quota,
     }))

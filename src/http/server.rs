@@ -1,0 +1,450 @@
+//! The accept loop: HTTP/1.1 and HTTP/2 (cleartext, prior knowledge) over
+//! the router, with the limits a shared service needs and `axum::serve`
+//! does not set:
+//!
+//! - **header timeout**: a client has [`ServerLimits::header_timeout`] to
+//!   send its first bytes and then its request headers; the same timer closes
+//!   a keep-alive connection that stays idle that long (hyper starts it when
+//!   it waits for the next request);
+//! - **body stall timeout**: a request body that sends nothing for
+//!   [`ServerLimits::body_timeout`] fails with [`BodyStalled`], which the
+//!   extractors answer 408 (`request-timeout`), and the connection closes;
+//! - **connection cap**: at [`ServerLimits::max_connections`] open
+//!   connections, a new connection evicts the oldest connection that has no
+//!   request in progress (an idle keep-alive, or a client still dribbling
+//!   its headers: the slowloris case), and is refused with a 503
+//!   problem only when every connection is serving a request. The cap is
+//!   lowered to fit the process's open-file limit, so that accepting never
+//!   runs out of descriptors because of connections;
+//! - **accept errors** (out of descriptors, aborted handshakes) slow the
+//!   loop down for 50 ms instead of ending it;
+//! - **graceful shutdown**: on the signal the listener closes, idle
+//!   connections close, and connections with a request in progress finish it.
+
+use std::collections::HashMap;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::task::{Context, Poll};
+use std::time::{Duration, Instant};
+
+use axum::body::Body;
+use axum::Router;
+use bytes::Bytes;
+use http_body::{Body as HttpBody, Frame, SizeHint};
+use hyper::body::Incoming;
+use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use hyper_util::server::conn::auto::Builder;
+use tokio::io::AsyncWriteExt;
+use tokio::net::{TcpListener, TcpStream};
+use tokio::sync::{watch, Notify};
+use tower::ServiceExt;
+
+use crate::problem::{Kind, TYPE_BASE};
+
+/// Limits of the accept loop (see the module documentation).
+#[derive(Debug, Clone, Copy)]
+pub struct ServerLimits {
+    /// Time to send the request headers; also the idle keep-alive timeout.
+    pub header_timeout: Duration,
+    /// Longest pause within a request body.
+    pub body_timeout: Duration,
+    /// Open connections at most (lowered to fit the open-file limit).
+    pub max_connections: usize,
+}
+
+impl Default for ServerLimits {
+    fn default() -> Self {
+        Self {
+            header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(30),
+            max_connections: 4096,
+        }
+    }
+}
+
+/// The error of a request body that sent nothing for the body timeout.
+#[derive(Debug, Clone, Copy, thiserror::Error)]
+#[error("the request body sent nothing for {0:?}")]
+pub struct BodyStalled(pub Duration);
+
+/// The [`BodyStalled`] somewhere in `e`'s chain of sources, if any.
+pub fn stalled_in<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a BodyStalled> {
+    let mut cur = Some(e);
+    while let Some(err) = cur {
+        if let Some(s) = err.downcast_ref::<BodyStalled>() {
+            return Some(s);
+        }
+        cur = err.source();
+    }
+    None
+}
+
+/// Descriptors kept free for the database, files and the refusals.
+const FD_RESERVE: usize = 256;
+/// Refusals (503 written on a fresh connection) in progress at most; beyond
+/// it a connection over the cap is closed without an answer.
+const MAX_REFUSALS: usize = 64;
+
+/// The connection cap that fits the process's soft open-file limit (read
+/// from `/proc/self/limits`; unchanged where that file does not exist).
+pub fn effective_cap(wanted: usize) -> usize {
+    let soft = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("Max open files"))
+                .and_then(|l| l.split_whitespace().nth(3).map(str::to_owned))
+        })
+        .and_then(|v| v.parse::<usize>().ok());
+    match soft {
+        Some(limit) => wanted.min(limit.saturating_sub(FD_RESERVE).max(16)).max(1),
+        None => wanted.max(1),
+    }
+}
+
+/// One open connection, as the cap sees it.
+struct Slot {
+    since: Instant,
+    /// Requests in progress on it (a response body still streaming counts).
+    busy: Arc<AtomicUsize>,
+    /// Raised to close it (eviction).
+    evict: Arc<Notify>,
+}
+
+#[derive(Default)]
+struct Registry {
+    next: u64,
+    open: HashMap<u64, Slot>,
+}
+
+enum Admission {
+    /// Serve it under this id.
+    Admit(u64, Arc<AtomicUsize>, Arc<Notify>),
+    /// Every slot is busy.
+    Refuse,
+}
+
+impl Registry {
+    fn admit(&mut self, cap: usize) -> Admission {
+        if self.open.len() >= cap {
+            let oldest_idle = self
+                .open
+                .iter()
+                .filter(|(_, s)| s.busy.load(Ordering::Acquire) == 0)
+                .min_by_key(|(_, s)| s.since)
+                .map(|(id, _)| *id);
+            match oldest_idle.and_then(|id| self.open.remove(&id)) {
+                Some(victim) => {
+                    victim.evict.notify_one();
+                    metrics::counter!(crate::telemetry::HTTP_CONNECTIONS_EVICTED).increment(1);
+                }
+                None => return Admission::Refuse,
+            }
+        }
+        self.next += 1;
+        let busy = Arc::new(AtomicUsize::new(0));
+        let evict = Arc::new(Notify::new());
+        self.open.insert(
+            self.next,
+            Slot {
+                since: Instant::now(),
+                busy: Arc::clone(&busy),
+                evict: Arc::clone(&evict),
+            },
+        );
+        Admission::Admit(self.next, busy, evict)
+    }
+}
+
+fn lock(r: &Mutex<Registry>) -> std::sync::MutexGuard<'_, Registry> {
+    r.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Serves `router` on `listener` until `signal` completes, then stops
+/// accepting and returns once every connection has closed (the caller
+/// bounds that wait with its grace period).
+pub async fn serve(
+    listener: TcpListener,
+    router: Router,
+    limits: ServerLimits,
+    signal: impl Future<Output = ()> + Send,
+) -> std::io::Result<()> {
+    let cap = effective_cap(limits.max_connections);
+    if cap < limits.max_connections {
+        tracing::warn!(
+            wanted = limits.max_connections,
+            cap,
+            "the open-file limit lowers --max-connections (raise it with `ulimit -n`)"
+        );
+    }
+    let mut builder = Builder::new(TokioExecutor::new());
+    builder
+        .http1()
+        .timer(TokioTimer::new())
+        .header_read_timeout(limits.header_timeout);
+    builder
+        .http2()
+        .timer(TokioTimer::new())
+        .max_concurrent_streams(128)
+        .keep_alive_interval(Some(Duration::from_secs(30)))
+        .keep_alive_timeout(Duration::from_secs(10));
+    let builder = Arc::new(builder);
+    let registry = Arc::new(Mutex::new(Registry::default()));
+    let refusals = Arc::new(AtomicUsize::new(0));
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let (alive_tx, alive_rx) = watch::channel(());
+    tokio::pin!(signal);
+    loop {
+        let accepted = tokio::select! {
+            () = &mut signal => break,
+            a = listener.accept() => a,
+        };
+        let stream = match accepted {
+            Ok((stream, _)) => stream,
+            Err(e) => {
+                if !matches!(
+                    e.kind(),
+                    std::io::ErrorKind::ConnectionAborted | std::io::ErrorKind::ConnectionReset
+                ) {
+                    tracing::warn!(error = %e, "accept failed; retrying in 50 ms");
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+                continue;
+            }
+        };
+        let _ = stream.set_nodelay(true);
+        let admission = lock(&registry).admit(cap);
+        match admission {
+            Admission::Refuse => {
+                metrics::counter!(crate::telemetry::HTTP_CONNECTIONS_REFUSED).increment(1);
+                if refusals.fetch_add(1, Ordering::AcqRel) < MAX_REFUSALS {
+                    let refusals = Arc::clone(&refusals);
+                    tokio::spawn(async move {
+                        refuse(stream).await;
+                        refusals.fetch_sub(1, Ordering::AcqRel);
+                    });
+                } else {
+                    refusals.fetch_sub(1, Ordering::AcqRel);
+                }
+            }
+            Admission::Admit(id, busy, evict) => {
+                let conn = Connection {
+                    id,
+                    busy,
+                    evict,
+                    registry: Arc::clone(&registry),
+                    builder: Arc::clone(&builder),
+                    router: router.clone(),
+                    limits,
+                    stop: stop_rx.clone(),
+                    _alive: alive_rx.clone(),
+                };
+                tokio::spawn(conn.run(stream));
+            }
+        }
+    }
+    drop(listener);
+    let _ = stop_tx.send(true);
+    drop(alive_rx);
+    alive_tx.closed().await;
+    Ok(())
+}
+
+/// Answers 503 on a connection over the cap and closes it.
+async fn refuse(mut stream: TcpStream) {
+    let kind = Kind::Busy;
+    let body = format!(
+        "{{\"type\":\"{TYPE_BASE}{}\",\"title\":\"{}\",\"status\":503,\"detail\":\"every \
+         connection is serving a request (--max-connections); retry later\"}}",
+        kind.slug(),
+        kind.title()
+    );
+    let head = format!(
+        "HTTP/1.1 503 Service Unavailable\r\ncontent-type: application/problem+json\r\n\
+         retry-after: 1\r\nconnection: close\r\ncontent-length: {}\r\n\r\n",
+        body.len()
+    );
+    let _ = tokio::time::timeout(Duration::from_secs(1), async {
+        stream.write_all(head.as_bytes()).await?;
+        stream.write_all(body.as_bytes()).await?;
+        stream.shutdown().await
+    })
+    .await;
+}
+
+/// One accepted connection and what it needs.
+struct Connection {
+    id: u64,
+    busy: Arc<AtomicUsize>,
+    evict: Arc<Notify>,
+    registry: Arc<Mutex<Registry>>,
+    builder: Arc<Builder<TokioExecutor>>,
+    router: Router,
+    limits: ServerLimits,
+    stop: watch::Receiver<bool>,
+    /// Dropped when the connection ends ([`serve`] waits for all).
+    _alive: watch::Receiver<()>,
+}
+
+impl Connection {
+    async fn run(mut self, stream: TcpStream) {
+        // hyper's version sniffing (HTTP/1 or the HTTP/2 preface) has no
+        // timer of its own: wait for the first bytes here.
+        let mut probe = [0u8; 1];
+        let first = tokio::select! {
+            r = tokio::time::timeout(self.limits.header_timeout, stream.peek(&mut probe)) => {
+                matches!(r, Ok(Ok(n)) if n > 0)
+            }
+            () = self.evict.notified() => false,
+            _ = self.stop.changed() => false,
+        };
+        if first {
+            self.serve(stream).await;
+        }
+        lock(&self.registry).open.remove(&self.id);
+    }
+
+    async fn serve(&mut self, stream: TcpStream) {
+        let router = self.router.clone();
+        let busy = Arc::clone(&self.busy);
+        let body_timeout = self.limits.body_timeout;
+        let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
+            let guard = Busy::enter(&busy);
+            let router = router.clone();
+            async move {
+                let req = req.map(|b| Body::new(Stalling::new(b, body_timeout)));
+                let res = router.oneshot(req).await;
+                res.map(|r| {
+                    r.map(|b| {
+                        Body::new(Guarded {
+                            inner: b,
+                            _busy: guard,
+                        })
+                    })
+                })
+            }
+        });
+        let conn = self
+            .builder
+            .serve_connection_with_upgrades(TokioIo::new(stream), service);
+        tokio::pin!(conn);
+        let mut draining = *self.stop.borrow();
+        if draining {
+            conn.as_mut().graceful_shutdown();
+        }
+        loop {
+            tokio::select! {
+                r = conn.as_mut() => {
+                    if let Err(e) = r {
+                        tracing::debug!(error = %e, "connection ended with an error");
+                    }
+                    break;
+                }
+                () = self.evict.notified() => break,
+                _ = self.stop.changed(), if !draining => {
+                    draining = true;
+                    conn.as_mut().graceful_shutdown();
+                }
+            }
+        }
+    }
+}
+
+/// Counts a request in progress on its connection until dropped.
+struct Busy(Arc<AtomicUsize>);
+
+impl Busy {
+    fn enter(busy: &Arc<AtomicUsize>) -> Self {
+        busy.fetch_add(1, Ordering::AcqRel);
+        Self(Arc::clone(busy))
+    }
+}
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// A response body that keeps its connection counted busy until sent.
+struct Guarded {
+    inner: Body,
+    _busy: Busy,
+}
+
+impl HttpBody for Guarded {
+    type Data = Bytes;
+    type Error = axum::Error;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
+        Pin::new(&mut self.inner).poll_frame(cx)
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.inner.is_end_stream()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        self.inner.size_hint()
+    }
+}
+
+/// A request body that fails with [`BodyStalled`] when no frame arrives
+/// for `limit` (the timer starts when the body is first polled and restarts
+/// at every frame).
+struct Stalling {
+    inner: Incoming,
+    limit: Duration,
+    timer: Option<Pin<Box<tokio::time::Sleep>>>,
+}
+
+impl Stalling {
+    fn new(inner: Incoming, limit: Duration) -> Self {
+        Self {
+            inner,
+            limit,
+            timer: None,
+        }
+    }
+}
+
+impl HttpBody for Stalling {
+    type Data = Bytes;
+    type Error = axum::BoxError;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, axum::BoxError>>> {
+        let this = &mut *self;
+        match Pin::new(&mut this.inner).poll_frame(cx) {
+            Poll::Ready(frame) => {
+                this.timer = None;
+                Poll::Ready(frame.map(|f| f.map_err(Into::into)))
+            }
+            Poll::Pending => {
+                let limit = this.limit;
+                let timer = this
+                    .timer
+                    .get_or_insert_with(|| Box::pin(tokio::time::sleep(limit)));
+                match timer.as_mut().poll(cx) {
+                    Poll::Ready(()) => Poll::Ready(Some(Err(Box::new(BodyStalled(limit))))),
+                    Poll::Pending => Poll::Pending,
+                }
+            }
+        }
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.inner.is_end_stream()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        self.inner.size_hint()
+    }
+}

@@ -1,0 +1,172 @@
+//! The accept loop's limits (issue 20): a declared oversized body is
+//! refused before a byte of it is read, a stalled body gets 408, slow
+//! headers time out, and at the connection cap the oldest idle connection
+//! makes room (or, when every connection is busy, the newcomer gets 503).
+
+use std::time::{Duration, Instant};
+
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+use crate::common::spawn;
+
+fn addr(base: &str) -> String {
+    base.trim_start_matches("http://").to_string()
+}
+
+/// Reads until the peer closes or `limit` passes; returns what came.
+async fn read_all(s: &mut TcpStream, limit: Duration) -> (Vec<u8>, bool) {
+    let mut out = Vec::new();
+    let mut buf = [0u8; 4096];
+    let deadline = tokio::time::Instant::now() + limit;
+    loop {
+        match tokio::time::timeout_at(deadline, s.read(&mut buf)).await {
+            Ok(Ok(0)) | Ok(Err(_)) => return (out, true),
+            Ok(Ok(n)) => out.extend_from_slice(&buf[..n]),
+            Err(_) => return (out, false),
+        }
+    }
+}
+
+fn status_of(bytes: &[u8]) -> Option<u16> {
+    let text = String::from_utf8_lossy(bytes);
+    text.lines().next()?.split_whitespace().nth(1)?.parse().ok()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_declared_oversized_body_is_refused_before_it_is_read() {
+    let app = spawn(|s| s.max_body_bytes = 1 << 20).await;
+    let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    s.write_all(
+        b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n\
+          Content-Length: 300000000\r\n\r\n",
+    )
+    .await
+    .expect("send");
+    // Not one body byte is sent: the answer must come anyway.
+    let (bytes, _) = read_all(&mut s, Duration::from_secs(5)).await;
+    let text = String::from_utf8_lossy(&bytes);
+    assert_eq!(status_of(&bytes), Some(413), "{text}");
+    assert!(text.contains("application/problem+json"), "{text}");
+    assert!(
+        text.contains("300000000") && text.contains("max-body-bytes"),
+        "{text}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stalled_body_gets_408() {
+    let app = spawn(|s| s.body_timeout_secs = 0.5).await;
+    let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    let started = Instant::now();
+    s.write_all(
+        b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n\
+          Content-Length: 1000\r\n\r\n0123456789",
+    )
+    .await
+    .expect("send");
+    let (bytes, _) = read_all(&mut s, Duration::from_secs(10)).await;
+    let text = String::from_utf8_lossy(&bytes);
+    assert_eq!(status_of(&bytes), Some(408), "{text}");
+    assert!(
+        text.contains("request-timeout") && text.contains("body-timeout-secs"),
+        "{text}"
+    );
+    // Answered after the pause, not before it.
+    assert!(
+        started.elapsed() >= Duration::from_millis(450),
+        "{:?}",
+        started.elapsed()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slow_headers_and_silent_connections_are_closed() {
+    let app = spawn(|s| s.header_timeout_secs = 0.5).await;
+    // Half a request line, then nothing.
+    let mut half = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    half.write_all(b"GET /healthz HTTP/1.1\r\nHo")
+        .await
+        .expect("send");
+    // Nothing at all.
+    let mut silent = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    for s in [&mut half, &mut silent] {
+        let (_, closed) = read_all(s, Duration::from_secs(5)).await;
+        assert!(
+            closed,
+            "the server kept a slow connection open past its header timeout"
+        );
+    }
+    // A prompt client is served as before.
+    assert_eq!(app.get("/healthz").await.status(), 200);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn at_the_cap_the_oldest_idle_connection_makes_room() {
+    let app = spawn(|s| {
+        s.max_connections = 4;
+        s.header_timeout_secs = 60.0;
+    })
+    .await;
+    let mut slow = Vec::new();
+    for _ in 0..4 {
+        let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+        s.write_all(b"GET /healthz HTTP/1.1\r\n")
+            .await
+            .expect("send");
+        slow.push(s);
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    // Four slow clients hold every slot; a fresh client still gets in.
+    for _ in 0..3 {
+        let res = reqwest::Client::new()
+            .get(app.url("/healthz"))
+            .send()
+            .await
+            .expect("a new connection at the cap is served");
+        assert_eq!(res.status(), 200);
+    }
+    // The oldest slow connection was the one closed to make room.
+    let (_, closed) = read_all(&mut slow[0], Duration::from_secs(2)).await;
+    assert!(closed, "the oldest idle connection was not evicted");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn at_the_cap_with_every_connection_busy_a_newcomer_gets_503() {
+    let app = spawn(|s| {
+        s.max_connections = 2;
+        s.body_timeout_secs = 30.0;
+    })
+    .await;
+    // Two uploads in progress (headers sent, body still arriving): busy.
+    let mut busy = Vec::new();
+    for _ in 0..2 {
+        let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+        s.write_all(
+            b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n\
+              Content-Length: 1000\r\n\r\n01234",
+        )
+        .await
+        .expect("send");
+        busy.push(s);
+    }
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut third = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    third
+        .write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+        .await
+        .expect("send");
+    let (bytes, closed) = read_all(&mut third, Duration::from_secs(5)).await;
+    let text = String::from_utf8_lossy(&bytes);
+    assert_eq!(status_of(&bytes), Some(503), "{text}");
+    assert!(
+        text.to_ascii_lowercase().contains("retry-after: 1"),
+        "{text}"
+    );
+    assert!(text.contains("max-connections"), "{text}");
+    assert!(closed);
+    drop(busy);
+    // Once the uploads go away, the service answers again.
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(app.get("/healthz").await.status(), 200);
+}
