@@ -153,12 +153,14 @@ impl Operation for GridOffsetRequest {
                     Some(id) => mask_of(&fetch(inputs, "obstacles", id)?, "obstacles", &grid)?,
                     None => vec![false; grid.len()],
                 };
-                let cells: Vec<Vec<usize>> = (0..grid.len())
-                    .filter(|&c| mask[c] == dilate && !blocked[c])
-                    .map(|c| grid.unravel(c)[off..].to_vec())
-                    .collect();
-                if control.is_cancelled() {
-                    return Err(OpError::Cancelled);
+                let mut cells: Vec<Vec<usize>> = Vec::new();
+                for c in 0..grid.len() {
+                    if c % (1 << 16) == 0 && control.is_cancelled() {
+                        return Err(OpError::Cancelled);
+                    }
+                    if mask[c] == dilate && !blocked[c] {
+                        cells.push(grid.unravel(c)[off..].to_vec());
+                    }
                 }
                 if cells.is_empty() {
                     // Nothing to grow from: the dilation is empty, the erosion keeps the shape.

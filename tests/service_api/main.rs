@@ -3,7 +3,6 @@
 
 mod common;
 mod connections;
-mod deadlines;
 mod errors;
 mod flow;
 mod load;
