@@ -4,6 +4,7 @@
 mod common;
 mod errors;
 mod flow;
+mod level_set;
 mod load;
 mod mesh;
 mod openapi;
