@@ -374,9 +374,17 @@ pub fn level_set_distance(
     }
     let two_sides = eikonal.order == Order::Second && eikonal.method != Method::Dijkstra;
     let mut out = if two_sides {
-        // Outside (phi >= 0): the inside's interface cells at -d, the rest of the inside walled off.
-        let outside = side_solve(grid, cost, &seeds, &inside, false, eikonal, control)?;
-        let inner = side_solve(grid, cost, &seeds, &inside, true, eikonal, control)?;
+        // Outside (phi >= 0): the inside's interface cells at -d, the rest of
+        // the inside walled off; then the inside. Progress: each side in
+        // proportion to its cells, so that the fraction only grows.
+        let outside_cells = inside.iter().filter(|&&v| !v).count() as f64;
+        let share = outside_cells / inside.len().max(1) as f64;
+        let first = |f: f64| control.report(share * f);
+        let second = |f: f64| control.report(share + (1.0 - share) * f);
+        let c1 = control.cancel_only().with_progress(&first);
+        let outside = side_solve(grid, cost, &seeds, &inside, false, eikonal, &c1)?;
+        let c2 = control.cancel_only().with_progress(&second);
+        let inner = side_solve(grid, cost, &seeds, &inside, true, eikonal, &c2)?;
         merge(outside, inner, &inside)
     } else {
         let problem = EikonalProblem {
@@ -697,6 +705,31 @@ mod tests {
                 values: None
             }
         );
+    }
+
+    #[test]
+    fn progress_only_grows_over_the_two_sides() {
+        // Fast marching reports every 65536 frozen cells.
+        let n = 600;
+        let grid = Grid::unit(&[n, n]).unwrap();
+        let phi = circle_phi(n, [299.5, 300.2], 200.3, false);
+        let seen = std::sync::Mutex::new(Vec::new());
+        let sink = |f: f64| seen.lock().unwrap().push(f);
+        let control = Control::new().with_progress(&sink);
+        let cost = IsotropicCost::constant(1.0).unwrap();
+        level_set_distance(
+            &grid,
+            &cost,
+            &phi.view(),
+            &LevelSetOptions::default(),
+            &EikonalOptions::DEFAULT,
+            &control,
+        )
+        .unwrap();
+        let seen = seen.into_inner().unwrap();
+        assert!(seen.len() > 2, "{seen:?}");
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+        assert!((seen[seen.len() - 1] - 1.0).abs() < 1e-12, "{seen:?}");
     }
 
     #[test]
