@@ -542,3 +542,84 @@ fn bad_tensor_files_exit_non_zero_naming_the_first_bad_cell() {
         }
     }
 }
+
+/// `phi = |x - c|² - r²` on a 96 x 80 grid (not a distance).
+fn circle_phi() -> ArrayD<f64> {
+    ArrayD::from_shape_fn(IxDyn(&[96, 80]), |ix| {
+        (ix[0] as f64 - 47.3).powi(2) + (ix[1] as f64 - 40.6).powi(2) - 25.2f64.powi(2)
+    })
+}
+
+#[test]
+fn phi_signed_is_the_redistancing_and_a_source_mask_is_zero() {
+    let dir = TempDir::new().unwrap();
+    let (phi_path, out) = (path(&dir, "phi.npy"), path(&dir, "d.npy"));
+    write_npy(&phi_path, &circle_phi()).unwrap();
+    let o = geodex(&[
+        "distance",
+        "--phi",
+        s(&phi_path),
+        "--signed",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d: ArrayD<f64> = read_npy(&out).unwrap();
+    assert_eq!(d.shape(), &[96, 80]);
+    for (ix, &v) in d.indexed_iter() {
+        let exact = (ix[0] as f64 - 47.3).hypot(ix[1] as f64 - 40.6) - 25.2;
+        if exact.abs() <= 8.0 {
+            assert!((v - exact).abs() <= 0.05, "{ix:?}: {v} vs {exact}");
+        }
+        assert_eq!(v < 0.0, exact < 0.0, "{ix:?}");
+    }
+
+    // A mask with a cost: 0 on the mask, 2 × the gap beside it.
+    let mask = ArrayD::from_shape_fn(IxDyn(&[20, 30]), |ix| {
+        u8::from((5..9).contains(&ix[0]) && (10..14).contains(&ix[1]))
+    });
+    let mask_path = path(&dir, "mask.npy");
+    write_npy(&mask_path, &mask).unwrap();
+    let cost_path = path(&dir, "cost.npy");
+    write_npy(&cost_path, &ArrayD::from_elem(IxDyn(&[20, 30]), 2.0f64)).unwrap();
+    let o = geodex(&[
+        "distance",
+        "--source-mask",
+        s(&mask_path),
+        "--cost",
+        s(&cost_path),
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let u: ArrayD<f64> = read_npy(&out).unwrap();
+    for (ix, &m) in mask.indexed_iter() {
+        if m != 0 {
+            assert_eq!(u[&ix], 0.0);
+        }
+    }
+    assert!((u[[6, 20]] - 2.0 * 7.0).abs() < 1e-9, "{}", u[[6, 20]]);
+
+    // Errors name the flags.
+    let flat = path(&dir, "flat.npy");
+    write_npy(&flat, &ArrayD::from_elem(IxDyn(&[8, 8]), 1.0f64)).unwrap();
+    let line = one_error_line(&["distance", "--phi", s(&flat), "--out", s(&out)]);
+    assert!(
+        line.starts_with("geodex: --phi: ") && line.contains("no zero level set"),
+        "{line}"
+    );
+    let line = one_error_line(&[
+        "distance",
+        "--shape",
+        "8,8",
+        "--source",
+        "1,1",
+        "--signed",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        line.contains("--phi") || line.contains("--signed"),
+        "{line}"
+    );
+}

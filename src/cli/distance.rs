@@ -10,6 +10,8 @@
 //! geodex distance --cost W.npy --source 10,20 --source 200,31.5 --out U.npy --labels L.npy
 //! geodex distance --shape 128,128,128 --source 64,64,64 --spacing 1,1,2 --out U.npy
 //! geodex distance --tensor T.npy --source 10,20 --out U.npy
+//! geodex distance --phi PHI.npy --signed --out D.npy       # redistancing, as skfmm.distance(phi)
+//! geodex distance --source-mask REGION.npy --cost W.npy --out U.npy
 //! ```
 //!
 //! `--tensor T.npy` gives a Riemannian metric instead of a cost: shape
@@ -40,7 +42,8 @@ use crate::ops::{InputArray, OpError};
 
 /// Flags of `geodex distance`.
 #[derive(Debug, Clone, Args)]
-#[command(group(ArgGroup::new("metric").required(true).args(["cost", "shape", "tensor"])))]
+#[command(group(ArgGroup::new("metric").args(["cost", "shape", "tensor"])))]
+#[command(group(ArgGroup::new("source_kind").required(true).multiple(true).args(["sources", "phi", "source_mask"])))]
 pub struct DistanceArgs {
     /// Cost per unit length W (or a speed with --speed): a 2D or 3D array,
     /// f32 or f64 (NPY, or any format geodex reads). +inf marks a wall.
@@ -56,13 +59,23 @@ pub struct DistanceArgs {
     pub shape: Option<Vec<usize>>,
     /// A point source in index coordinates, axis 0 first; repeat for several
     /// sources (label i-1 for the i-th).
-    #[arg(
-        long = "source",
-        value_name = "I,J[,K]",
-        required = true,
-        allow_hyphen_values = true
-    )]
+    #[arg(long = "source", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub sources: Vec<String>,
+    /// A level set phi (2D or 3D array, negative inside): the source is its
+    /// zero level set, located between cells (as `skfmm.distance`). It must
+    /// be the only source. Without --cost, --shape or --tensor the cost is 1
+    /// on phi's grid.
+    #[arg(long, value_name = "PHI.npy", conflicts_with_all = ["sources", "source_mask", "tensor"])]
+    pub phi: Option<PathBuf>,
+    /// With --phi: write the signed distance, negative where phi < 0 (the
+    /// redistancing of phi).
+    #[arg(long, requires = "phi")]
+    pub signed: bool,
+    /// A mask of the grid's shape whose non-zero cells are sources of value
+    /// 0 (after the --source points, so its label is their count). Without
+    /// --cost, --shape or --tensor the cost is 1 on the mask's grid.
+    #[arg(long, value_name = "MASK.npy")]
+    pub source_mask: Option<PathBuf>,
     /// Spacing, scheme, speed and obstacles (shared with `geodex path`).
     #[command(flatten)]
     pub scheme: SchemeFlags,
@@ -151,14 +164,22 @@ impl SchemeFlags {
 
 /// Point sources (index coordinates) as the request's source sections.
 pub(crate) fn point_sources(points: Vec<Vec<f64>>) -> Vec<SourceSpec> {
-    points
-        .into_iter()
-        .map(|p| SourceSpec {
-            point: Some(p),
-            cells: None,
-            values: None,
-        })
-        .collect()
+    points.into_iter().map(SourceSpec::at_point).collect()
+}
+
+/// The source an error's field names (`sources[2].mask` → 2).
+fn source_index(e: &OpError) -> Option<usize> {
+    let rest = e.field()?.strip_prefix("sources[")?;
+    rest[..rest.find(']')?].parse().ok()
+}
+
+/// An [`OpError`] reported on the given flag.
+fn op_error_as(e: OpError, name: &str) -> DistanceError {
+    match e {
+        OpError::Cancelled => DistanceError::Cancelled,
+        OpError::UnknownDataset { id, .. } => flag(name, format!("dataset '{id}' not found")),
+        OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => flag(name, reason),
+    }
 }
 
 /// `--method`.
@@ -216,15 +237,58 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
         args.shape.as_deref(),
         args.tensor.as_deref(),
     );
-    let (inputs, cost, tensor) = metric.load(None)?;
-    let cost_flag = metric.flag();
+    let (mut inputs, mut cost, tensor) = metric.load(None)?;
+    let mut cost_flag = metric.flag();
+    let mut spacing = scheme.spacing.spacing.clone();
+    let mut sources = point_sources(sources);
+    // --phi and --source-mask: datasets named `phi` and `source_mask`.
+    for (name, path, id) in [
+        ("--phi", &args.phi, "phi"),
+        ("--source-mask", &args.source_mask, "source_mask"),
+    ] {
+        let Some(path) = path else { continue };
+        let decoded = read_array(name, path)?;
+        if args.cost.is_none() && args.shape.is_none() && args.tensor.is_none() {
+            // A unit cost on the source's grid, with its stored spacing.
+            cost = Some(CostSpec {
+                dataset: None,
+                constant: Some(1.0),
+                shape: Some(decoded.array.shape().to_vec()),
+                interpretation: InterpretationSpec::Cost,
+                design: None,
+            });
+            cost_flag = name;
+            if spacing.is_none() {
+                spacing = decoded.spacing.clone();
+            }
+        }
+        inputs.insert(
+            id.into(),
+            InputArray {
+                array: Arc::new(decoded.array),
+                spacing: decoded.spacing,
+            },
+        );
+        sources.push(SourceSpec {
+            level_set: (id == "phi").then(|| id.to_string()),
+            mask: (id == "source_mask").then(|| id.to_string()),
+            ..SourceSpec::default()
+        });
+    }
+    if cost.is_none() && tensor.is_none() {
+        return Err(flag(
+            "--cost",
+            "give the metric: --cost, --shape or --tensor (or --phi / --source-mask for a unit cost on their grid)",
+        ));
+    }
+    let point_count = args.sources.len();
 
     let request = GridDistanceRequest {
         cost,
         metric: tensor,
-        spacing: scheme.spacing.spacing.clone(),
+        spacing,
         obstacles: scheme.obstacles_id(),
-        sources: point_sources(sources),
+        sources,
         method: scheme.method_spec(),
         order: scheme.order,
         factoring: !scheme.no_factoring,
@@ -238,9 +302,21 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
             labels: args.labels.is_some(),
             frozen_order: false,
         },
+        signed: args.signed,
     };
-    let mut output =
-        run_operation(Box::new(request), inputs).map_err(|e| run_error(e, cost_flag))?;
+    let mut output = run_operation(Box::new(request), inputs).map_err(|e| match e {
+        // The sources after the points are --phi or --source-mask.
+        CliRunError::Op(e) if source_index(&e).is_some_and(|i| i >= point_count) => {
+            let name = if args.phi.is_some() {
+                "--phi"
+            } else {
+                "--source-mask"
+            };
+            op_error_as(e, name)
+        }
+        CliRunError::Op(e) if e.field() == Some("signed") => op_error_as(e, "--signed"),
+        e => run_error(e, cost_flag),
+    })?;
     let stats = std::mem::take(&mut output.document["stats"]);
     for out in output.arrays {
         match (out.name.as_str(), &args.labels) {

@@ -176,11 +176,7 @@ impl Operation for GridOffsetRequest {
                         &cost,
                         &Some(grid.spacing().to_vec()),
                         &self.obstacles,
-                        vec![SourceSpec {
-                            point: None,
-                            cells: Some(cells),
-                            values: None,
-                        }],
+                        vec![SourceSpec::at_cells(cells)],
                         2,
                         Some(self.radius * (1.0 + 1e-9) + 1e-12),
                     );

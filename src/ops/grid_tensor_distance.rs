@@ -13,13 +13,15 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::spec::scheme::{stop_name, OutputSpec, SourceSpec, StopSpec};
+use super::spec::scheme::{
+    resolve_sources, source_dataset_ids, stop_name, OutputSpec, SourceSpec, StopSpec,
+};
 use super::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::anisotropic::descent::minimal_path;
 use crate::numerics::paths::DescentOptions;
-use crate::numerics::{Control, Source};
+use crate::numerics::{Control, IsotropicCost, Source};
 use crate::ops::spec::cost::CostSpec;
 use crate::ops::spec::defaults::default_order;
 use crate::ops::spec::defaults::default_step;
@@ -123,7 +125,15 @@ impl GridTensorDistanceRequest {
             connectivity: Default::default(),
             stop: self.stop.clone(),
             outputs: self.outputs,
+            signed: false,
         };
+        if let Some(i) = self.sources.iter().position(|s| s.level_set.is_some()) {
+            return Err(OpError::invalid(
+                format!("sources[{i}].level_set"),
+                "a level set is located in the Euclidean metric of the grid: use grid.distance \
+                 with an isotropic `cost`",
+            ));
+        }
         probe.validate(limits)?;
         if !(self.path_step.is_finite() && self.path_step > 0.0) {
             return Err(OpError::invalid(
@@ -161,6 +171,7 @@ impl Operation for GridTensorDistanceRequest {
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".into(), id.clone()));
         }
+        ids.extend(source_dataset_ids(&self.sources));
         ids
     }
 
@@ -183,7 +194,11 @@ impl Operation for GridTensorDistanceRequest {
             limits,
             control,
         )?;
-        let sources: Vec<Source> = self.sources.iter().map(SourceSpec::to_source).collect();
+        // Masks are cells at 0; walls are the tensor's own (a mask cell on one is refused there).
+        let unit =
+            IsotropicCost::constant(1.0).map_err(|e| OpError::invalid("tensor", e.to_string()))?;
+        let sources: Vec<Source> =
+            resolve_sources(&self.sources, &resolved.grid, &unit, inputs, control)?;
         let (problem, spacing) = resolved.into_problem(sources);
         let spec = TensorSolveSpec {
             order: self.order,

@@ -234,6 +234,9 @@ returns the distance map and the geodesic Voronoi labels as new datasets. \
 Point coordinates are in array index order (axis 0 first), in index units (cell centres are at integer \
 indices), with a separate per-axis `spacing` giving the physical size of a cell along each axis. \
 The cost is a dataset (`cost.dataset`) or a constant over a shape. \
+A source is a point, a list of cells, every non-zero cell of a `mask` dataset, or the zero level set of a \
+dataset `phi` (`level_set`, located between cells by interpolation as `skfmm.distance(phi, dx)` does); with \
+`signed: true` the distance is negative where `phi < 0`: the redistancing of `phi`. \
 One-round-trip form: send `multipart/form-data` with a `file` part (the cost array) and a `params` part \
 (this JSON with `cost.dataset` omitted or `\"file\"`). With `Accept: application/x-npy` (or `?format=npy`) \
 the answer is the distance array itself as NPY. The solve runs on a bounded pool: when it is full the answer \

@@ -19,15 +19,25 @@
 //!   the `2^d` axis orderings until the largest change is below a tolerance.
 //! * [`Method::Dijkstra`]: shortest paths on the grid graph, the graph
 //!   baseline, with metrication error (see [`Connectivity`]).
+//!
+//! Level sets and masks as sources ([`level_set_distance`], [`mask_source`]):
+//! the distance to the zero level set of `phi`, located at sub-cell accuracy,
+//! signed on request (redistancing), and every non-zero cell of a mask as a
+//! source of value 0.
 
 mod dijkstra;
 mod fast_marching;
 mod fast_sweeping;
+mod level_set;
 mod sources;
 // Crate-visible: farthest-point sampling (`numerics::sampling`) marches
 // its local fronts with the same update as the multi-source fast marching.
 pub(crate) mod update;
 
+pub use level_set::{
+    level_set_distance, locate_interface, mask_source, Interface, InterfaceFit, LevelSetError,
+    LevelSetOptions,
+};
 pub use sources::{nearest_cell, target_cells, InitialFront, SeedCell, SeedPoint};
 
 use ndarray::ArrayD;

@@ -8,9 +8,13 @@
 //!
 //! * first order: `D_k U = (U − a_k) / h_k`, so `c_k = 1/h_k`, `b_k = a_k`;
 //! * second order (when the next cell `x + 2σ e_k` is known and its value
-//!   `a2_k ≤ a_k`): `D_k U = (3U − 4a_k + a2_k) / (2h_k)`, so
+//!   `a2_k < a_k`): `D_k U = (3U − 4a_k + a2_k) / (2h_k)`, so
 //!   `c_k = 3/(2h_k)`, `b_k = (4a_k − a2_k)/3` (first order for that axis
-//!   otherwise).
+//!   otherwise). Strictly smaller: where `a2_k = a_k` the two cells are a
+//!   flat stretch, the inside of a region source (a mask, cells of equal
+//!   value) where `U` has a kink at the region's edge, and the one-sided
+//!   difference through the kink would put the first cell out at `2/3` of
+//!   its distance.
 //!
 //! `U` is the root of the upwind quadratic
 //!
@@ -418,7 +422,7 @@ fn update_one<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
                 (idx[k] + 2 < st.shape[k]).then(|| j1 + s)
             };
             if let Some(j2) = j2 {
-                if known(j2) && u[j2] <= a1 {
+                if known(j2) && u[j2] < a1 {
                     a2 = u[j2];
                 }
             }
@@ -667,7 +671,7 @@ pub(super) fn one_source<const A: usize>(
                 (idx[k] + 2 < st.shape[k]).then(|| j + s)
             };
             if let Some(j2) = j2 {
-                if u[j2] <= sl.a1[slot] {
+                if u[j2] < sl.a1[slot] {
                     sl.a2[slot] = u[j2];
                     any2 = true;
                 }
@@ -751,7 +755,7 @@ fn first_order_slots<const A: usize>(st: &Stencil, w: f64, w2: f64, sl: &Slots) 
 /// known neighbour, of value `a1` along axis `k`, is frozen: the same bits
 /// without reading the other neighbours. `a2` is the value of the cell
 /// after that neighbour (any value: it is used when `second` and
-/// `a2 <= a1`), `one_axis` the first-order root of axis `k`
+/// `a2 < a1`), `one_axis` the first-order root of axis `k`
 /// ([`one_axis_root`]) and `cost_j1` the cost of the neighbour (for
 /// [`cap`]). Fast marching meets such a cell at every first visit.
 #[allow(clippy::too_many_arguments)]
@@ -767,7 +771,7 @@ pub(super) fn one_neighbour(
     cost_j1: impl Fn() -> f64,
 ) -> Option<f64> {
     let h = st.h[k];
-    if second && a2 <= a1 {
+    if second && a2 < a1 {
         // The one-term quadratic as `solve_slots` computes it:
         // `disc = 0² − c² (0 − W²) = c² W²`, root `√disc / c²`.
         let c = st.inv_h2_second[k];
@@ -849,7 +853,7 @@ fn one_neighbour_factored(
     }
     let cone = Cone::at(st, jdx, fp)?;
     let h = st.h[k];
-    let (b, c) = cone.term(st, k, sigma, a1, (second && a2 <= a1).then_some(a2));
+    let (b, c) = cone.term(st, k, sigma, a1, (second && a2 < a1).then_some(a2));
     // The one-term quadratic as `solve_slots` computes it.
     let disc = c * rhs;
     if disc.is_nan() || disc < 0.0 {

@@ -46,8 +46,8 @@ use utoipa::ToSchema;
 use super::spec::cost::CostSpec;
 use super::spec::distance::GridDistanceRequest;
 use super::spec::scheme::{
-    check_metric_choice, metric_dataset_ids, ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec,
-    StopSpec,
+    check_metric_choice, metric_dataset_ids, refuse_dataset_sources, ConnectivitySpec, MethodSpec,
+    OutputSpec, SourceSpec, StopSpec,
 };
 use super::spec::tensor::TensorSpec;
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
@@ -344,6 +344,8 @@ impl GridPathsRequest {
                     ),
                 });
             }
+            // Level sets and masks would need their datasets in the map cache's key.
+            refuse_dataset_sources(&self.sources, "grid.paths")?;
             // The sources and the scheme are checked as grid.distance does.
             self.distance_request(self.sources.clone(), Vec::new())
                 .validate(limits)?;
@@ -454,15 +456,12 @@ impl GridPathsRequest {
                 labels: false,
                 frozen_order: false,
             },
+            signed: false,
         }
     }
 
     fn legs(&self) -> Vec<Leg> {
-        let point = |p: &Vec<f64>| SourceSpec {
-            point: Some(p.clone()),
-            cells: None,
-            values: None,
-        };
+        let point = |p: &Vec<f64>| SourceSpec::at_point(p.clone());
         let chain = |field: &'static str, pts: &[Vec<f64>], closed: bool| -> Vec<Leg> {
             let n = pts.len();
             let count = if closed { n } else { n - 1 };

@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use ndarray::ArrayD;
+use ndarray::{ArrayD, ArrayViewD, IxDyn};
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -17,11 +17,14 @@ use super::cost::{resolve_cost, CostSpec};
 use super::defaults::{default_order, default_true};
 use super::errors::eikonal_error;
 use super::scheme::{
-    check_metric_choice, metric_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec,
-    SourceSpec, StopSpec,
+    check_metric_choice, level_set_error, metric_dataset_ids, phi_of, resolve_sources,
+    source_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec, StopSpec,
 };
 use super::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
-use crate::numerics::eikonal::{Connectivity, EikonalOptions, EikonalProblem, Method, Order};
+use crate::numerics::eikonal::{
+    level_set_distance, Connectivity, EikonalOptions, EikonalProblem, InterfaceFit,
+    LevelSetOptions, Method, Order,
+};
 use crate::numerics::{self, Control};
 use crate::ops::spec::grid::fetch;
 use crate::ops::{Inputs, OpError, OpLimits};
@@ -79,6 +82,12 @@ pub struct GridDistanceRequest {
     /// Which arrays to return besides the distance.
     #[serde(default)]
     pub outputs: OutputSpec,
+    /// With a `level_set` source: return the signed distance, negative where
+    /// `phi < 0`. This is the redistancing of `phi` (`skfmm.distance(phi,
+    /// dx)`): a signed distance function with the same zero level set.
+    /// Default: false (the unsigned distance).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub signed: bool,
 }
 
 /// What a solve reports besides its arrays.
@@ -125,6 +134,7 @@ impl GridDistanceRequest {
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".into(), id.clone()));
         }
+        ids.extend(source_dataset_ids(&self.sources));
         ids
     }
 
@@ -155,29 +165,30 @@ impl GridDistanceRequest {
             });
         }
         for (i, s) in self.sources.iter().enumerate() {
-            match (&s.point, &s.cells) {
-                (Some(p), None) => {
-                    if s.values.is_some() {
-                        return Err(OpError::invalid(
-                            format!("sources[{i}].values"),
-                            "values go with `cells`, not with `point`",
-                        ));
-                    }
-                    if let Some(k) = p.iter().position(|v| !v.is_finite()) {
-                        return Err(OpError::invalid(
-                            format!("sources[{i}].point[{k}]"),
-                            "coordinates must be finite",
-                        ));
-                    }
-                }
-                (None, Some(_)) => {}
-                _ => {
-                    return Err(OpError::invalid(
-                        format!("sources[{i}]"),
-                        "give exactly one of `point` or `cells`",
-                    ))
-                }
+            s.check(&format!("sources[{i}]"))?;
+        }
+        if let Some(i) = self.sources.iter().position(|s| s.level_set.is_some()) {
+            if self.sources.len() > 1 {
+                return Err(OpError::invalid(
+                    "sources",
+                    format!(
+                        "a `level_set` source (sources[{i}]) must be the only source: its zero \
+                         level set is the whole source; combine the regions into one phi"
+                    ),
+                ));
             }
+            if self.metric.is_some() {
+                return Err(OpError::invalid(
+                    format!("sources[{i}].level_set"),
+                    "a level set is located in the Euclidean metric of the grid: use an \
+                     isotropic `cost`, not a tensor `metric`",
+                ));
+            }
+        } else if self.signed {
+            return Err(OpError::invalid(
+                "signed",
+                "`signed` needs a `level_set` source: the sign is that of phi (negative inside)",
+            ));
         }
         if !(1..=2).contains(&self.order) {
             return Err(OpError::invalid(
@@ -253,18 +264,38 @@ pub fn execute(
     )?;
     let cost = resolved.isotropic()?;
     let spacing = resolved.spacing.clone();
-    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
-    let problem = EikonalProblem {
-        grid: resolved.grid.clone(),
-        cost,
-        sources,
+    let grid = resolved.grid.clone();
+    let started;
+    let out = match req.sources.iter().position(|s| s.level_set.is_some()) {
+        Some(i) => {
+            let field = format!("sources[{i}].level_set");
+            let id = req.sources[i].level_set.as_deref().unwrap_or_default();
+            let phi = phi_of(inputs, &field, id, &grid)?;
+            let phi = ArrayViewD::from_shape(IxDyn(grid.shape()), &phi)
+                .map_err(|e| OpError::invalid(&field, e.to_string()))?;
+            let options = LevelSetOptions {
+                fit: InterfaceFit::Quadratic,
+                signed: req.signed,
+            };
+            started = Instant::now();
+            level_set_distance(&grid, &cost, &phi, &options, &req.options(), control)
+                .map_err(|e| level_set_error(e, &field))?
+        }
+        None => {
+            let sources = resolve_sources(&req.sources, &grid, &cost, inputs, control)?;
+            let problem = EikonalProblem {
+                grid: grid.clone(),
+                cost,
+                sources,
+            };
+            started = Instant::now();
+            numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?
+        }
     };
-    let started = Instant::now();
-    let out = numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?;
     let solve_seconds = started.elapsed().as_secs_f64();
     Ok(GridDistanceResult {
         stats: SolveStats {
-            cells: problem.grid.len() as u64,
+            cells: grid.len() as u64,
             frozen: out.frozen as u64,
             stop: stop_name(out.stop).into(),
             sweeps: out.sweeps.map(|s| s as u64),
@@ -303,7 +334,10 @@ fn execute_tensor(
         stop: req.stop.rules(),
         record_order: req.outputs.frozen_order,
     };
-    let sources = req.sources.iter().map(SourceSpec::to_source).collect();
+    // Masks are cells at 0; walls are the tensor's own (a mask cell on one is refused there).
+    let unit = numerics::IsotropicCost::constant(1.0)
+        .map_err(|e| OpError::invalid("metric", e.to_string()))?;
+    let sources = resolve_sources(&req.sources, &resolved.grid, &unit, inputs, control)?;
     let (problem, spacing) = resolved.into_problem(sources);
     let solved = solve_tensor(&problem, &spec, "metric", control)?;
     let out = solved.out;
@@ -371,5 +405,6 @@ pub fn distance_request(
             labels: false,
             frozen_order: false,
         },
+        signed: false,
     }
 }

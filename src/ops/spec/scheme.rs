@@ -6,14 +6,22 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::cost::CostSpec;
-use super::tensor::TensorSpec;
-use crate::numerics::eikonal::{Source, StopReason, StopRules};
-use crate::ops::spec::defaults::default_true;
-use crate::ops::{OpError, OpLimits};
+use ndarray::{ArrayViewD, IxDyn};
 
-/// One source: give `point`, or `cells` (with optional `values`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+use super::cost::CostSpec;
+use super::design::array_to_f64;
+use super::errors::eikonal_error;
+use super::grid::{fetch, mask_of};
+use super::tensor::TensorSpec;
+use crate::io::ArrayData;
+use crate::numerics::eikonal::{mask_source, LevelSetError, Source, StopReason, StopRules};
+use crate::numerics::{Control, Grid, IsotropicCost};
+use crate::ops::spec::defaults::default_true;
+use crate::ops::{Inputs, OpError, OpLimits};
+
+/// One source: give `point`, or `cells` (with optional `values`), or
+/// `level_set`, or `mask`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SourceSpec {
     /// A point in index coordinates (axis 0 first), possibly between cells.
@@ -26,10 +34,78 @@ pub struct SourceSpec {
     /// Initial values of `cells` (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub values: Option<Vec<f64>>,
+    /// Id of a dataset `phi` of the grid's shape (negative inside, positive
+    /// outside): the source is its zero level set, located between cells by
+    /// interpolation (a local quadratic fit of `phi`; `|∇phi| = 1` is not
+    /// assumed), as `skfmm.distance(phi, dx)` does. The cells next to the
+    /// interface start at their distance to it (times the cost there). It
+    /// must be the only source; with `signed: true` the distance is negative
+    /// where `phi < 0` (the redistancing of `phi`). Isotropic `cost` only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level_set: Option<String>,
+    /// Id of a dataset of the grid's shape: every non-zero cell is a source
+    /// cell of value 0 (cells on obstacles are left out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<String>,
 }
 
 impl SourceSpec {
-    /// The core source (a validated spec has exactly one of `point` and `cells`).
+    /// A point source.
+    pub fn at_point(point: Vec<f64>) -> Self {
+        Self {
+            point: Some(point),
+            ..Self::default()
+        }
+    }
+
+    /// A cell source of value 0.
+    pub fn at_cells(cells: Vec<Vec<usize>>) -> Self {
+        Self {
+            cells: Some(cells),
+            ..Self::default()
+        }
+    }
+
+    /// Checks that exactly one of `point`, `cells`, `level_set` and `mask`
+    /// is given (and `values` only with `cells`, finite coordinates);
+    /// `field` is the source's JSON path (`sources[2]`).
+    pub fn check(&self, field: &str) -> Result<(), OpError> {
+        let given = [
+            self.point.is_some(),
+            self.cells.is_some(),
+            self.level_set.is_some(),
+            self.mask.is_some(),
+        ];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(OpError::invalid(
+                field,
+                "give exactly one of `point`, `cells`, `level_set` or `mask`",
+            ));
+        }
+        if self.values.is_some() && self.cells.is_none() {
+            return Err(OpError::invalid(
+                format!("{field}.values"),
+                "values go with `cells`, not with `point`, `level_set` or `mask`",
+            ));
+        }
+        if let Some(p) = &self.point {
+            if let Some(k) = p.iter().position(|v| !v.is_finite()) {
+                return Err(OpError::invalid(
+                    format!("{field}.point[{k}]"),
+                    "coordinates must be finite",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// True for a `level_set` or `mask` source (a dataset to load).
+    pub fn is_dataset(&self) -> bool {
+        self.level_set.is_some() || self.mask.is_some()
+    }
+
+    /// The core source of a `point` or `cells` spec (a `level_set` or
+    /// `mask` needs its dataset: see [`resolve_sources`]).
     pub fn to_source(&self) -> Source {
         match (&self.point, &self.cells) {
             (Some(p), _) => Source::Point(p.clone()),
@@ -39,6 +115,119 @@ impl SourceSpec {
             },
             (None, None) => Source::Point(Vec::new()),
         }
+    }
+}
+
+/// The dataset ids named by `level_set` and `mask` sources, with their
+/// JSON paths (`sources[1].mask`).
+pub fn source_dataset_ids(sources: &[SourceSpec]) -> Vec<(String, String)> {
+    let mut ids = Vec::new();
+    for (i, s) in sources.iter().enumerate() {
+        if let Some(id) = &s.level_set {
+            ids.push((format!("sources[{i}].level_set"), id.clone()));
+        }
+        if let Some(id) = &s.mask {
+            ids.push((format!("sources[{i}].mask"), id.clone()));
+        }
+    }
+    ids
+}
+
+/// Refuses `level_set` and `mask` sources in an operation that cannot take
+/// them, naming the first one and saying what to do instead.
+pub fn refuse_dataset_sources(sources: &[SourceSpec], operation: &str) -> Result<(), OpError> {
+    match sources.iter().position(SourceSpec::is_dataset) {
+        Some(i) => {
+            let kind = if sources[i].level_set.is_some() {
+                "level_set"
+            } else {
+                "mask"
+            };
+            Err(OpError::invalid(
+                format!("sources[{i}].{kind}"),
+                format!(
+                    "{operation} takes `point` and `cells` sources only; \
+                     compute the distance from a `{kind}` with grid.distance"
+                ),
+            ))
+        }
+        None => Ok(()),
+    }
+}
+
+/// The core sources of `specs` on `grid`: points and cells as given, each
+/// `mask` as its non-zero cells at value 0 (cells on walls of `cost` left
+/// out). A `level_set` is solved by [`crate::numerics::eikonal::level_set_distance`]
+/// and is refused here. Errors name `sources[i].mask`.
+pub fn resolve_sources(
+    specs: &[SourceSpec],
+    grid: &Grid,
+    cost: &IsotropicCost<'_>,
+    inputs: &dyn Inputs,
+    control: &Control<'_>,
+) -> Result<Vec<Source>, OpError> {
+    specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| match (&s.mask, &s.level_set) {
+            (Some(id), _) => {
+                let field = format!("sources[{i}].mask");
+                let input = fetch(inputs, &field, id)?;
+                let mask = mask_of(&input, &field, grid)?;
+                let view = ArrayViewD::from_shape(IxDyn(grid.shape()), &mask)
+                    .map_err(|e| OpError::invalid(&field, e.to_string()))?;
+                mask_source(grid, cost, &view, control).map_err(|e| level_set_error(e, &field))
+            }
+            (None, Some(_)) => Err(OpError::invalid(
+                format!("sources[{i}].level_set"),
+                "a `level_set` source must be the only source",
+            )),
+            (None, None) => Ok(s.to_source()),
+        })
+        .collect()
+}
+
+/// The values of the `level_set` dataset named by `field` on `grid`, as f64
+/// in C order; errors name `field` (shape, a boolean array).
+pub fn phi_of(
+    inputs: &dyn Inputs,
+    field: &str,
+    id: &str,
+    grid: &Grid,
+) -> Result<Vec<f64>, OpError> {
+    let input = fetch(inputs, field, id)?;
+    if input.array.shape() != grid.shape() {
+        return Err(OpError::invalid(
+            field,
+            format!(
+                "the dataset has shape {:?} but the grid has shape {:?}; phi must have the grid's shape",
+                input.array.shape(),
+                grid.shape()
+            ),
+        ));
+    }
+    if matches!(&*input.array, ArrayData::Bool(_)) {
+        return Err(OpError::invalid(
+            field,
+            "a boolean array is not a level set: give phi (negative inside, positive outside), \
+             or use `mask` for a region of source cells",
+        ));
+    }
+    Ok(array_to_f64(&input.array))
+}
+
+/// A level-set or mask error as an [`OpError`] naming `field`.
+pub fn level_set_error(e: LevelSetError, field: &str) -> OpError {
+    match e {
+        LevelSetError::Eikonal(e) => eikonal_error(e),
+        LevelSetError::NoInterface { .. } => OpError::invalid(
+            field,
+            format!(
+                "{e}; check the sign convention, or give the region as a `mask` source, \
+                 or its boundary as `cells`"
+            ),
+        ),
+        other => OpError::invalid(field, other.to_string()),
     }
 }
 
