@@ -93,19 +93,19 @@ class Server:
         finally:
             c.close()
 
-    def rss_mb(self):
+    def status_mb(self, field):
+        """A memory figure of the server from /proc (VmRSS, VmHWM), in MB."""
         with open(f"/proc/{self.proc.pid}/status") as f:
             for line in f:
-                if line.startswith("VmRSS:"):
+                if line.startswith(field + ":"):
                     return int(line.split()[1]) / 1024
         return 0.0
 
+    def rss_mb(self):
+        return self.status_mb("VmRSS")
+
     def hwm_mb(self):
-        with open(f"/proc/{self.proc.pid}/status") as f:
-            for line in f:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) / 1024
-        return 0.0
+        return self.status_mb("VmHWM")
 
     def stop(self):
         self.proc.terminate()
