@@ -170,3 +170,50 @@ async fn at_the_cap_with_every_connection_busy_a_newcomer_gets_503() {
     tokio::time::sleep(Duration::from_millis(200)).await;
     assert_eq!(app.get("/healthz").await.status(), 200);
 }
+
+/// Uploads are decoded on the solver pool and admitted like solves: while a
+/// long solve holds the only slot, an upload is refused with 503 and
+/// `Retry-After` instead of decoding beside it (issue 20: concurrent
+/// compressed volumes used to be decoded all at once, 4.6 GB for three).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uploads_are_admitted_by_the_pool() {
+    let app = spawn(|s| {
+        s.pool_threads = Some(1);
+        s.queue_capacity = Some(1);
+        s.request_timeout_secs = 30.0;
+    })
+    .await;
+    let small = geodex::io::ArrayData::F64(ndarray::ArrayD::zeros(ndarray::IxDyn(&[4, 4])));
+    let npy = geodex::io::encode_npy(&small).expect("npy");
+    // Admitted when the pool is free.
+    let id = app.upload(&small).await;
+    assert!(id.starts_with("ds_"));
+    // A segmentation, not a distance: `load.rs` reads the process-wide
+    // metrics of cancelled grid.distance solves.
+    let slow = serde_json::json!({"cost": {"constant": 1.0, "shape": [3000, 3000]},
+        "seeds": [{"label": 1, "point": [1.0, 1.0]}, {"label": 2, "point": [2990.0, 2990.0]}]});
+    let client = app.client.clone();
+    let url = app.url("/v1/grid/segment");
+    let solve = tokio::spawn(async move { client.post(url).json(&slow).send().await });
+    let t = Instant::now();
+    while app.get("/readyz").await.status() == 200 {
+        assert!(
+            t.elapsed() < Duration::from_secs(10),
+            "the solve never started"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let res = app
+        .client
+        .post(app.url("/v1/datasets"))
+        .header("content-type", "application/x-npy")
+        .body(npy)
+        .send()
+        .await
+        .expect("upload");
+    let retry = res.headers().get("retry-after").cloned();
+    let v = crate::common::problem(res, 503).await;
+    assert_eq!(v["type"], "https://geodex.dev/problems/busy", "{v}");
+    assert!(retry.is_some());
+    solve.abort();
+}

@@ -14,7 +14,7 @@ use crate::datasets::{valid_id, DatasetMeta, StoreError};
 use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
 use crate::http::AppState;
 use crate::io::mesh::{read_mesh, write, MeshFormat, MeshLimits};
-use crate::io::{self, ArrayData, Decoded, Format, Limits};
+use crate::io::{self, ArrayData, Decoded, Format};
 use crate::problem::{io_error, ApiError};
 
 /// Largest array offered as JSON.
@@ -128,18 +128,26 @@ pub fn format_from_content_type(headers: &HeaderMap) -> Result<Option<Format>, A
         .map_err(|e| ApiError::unsupported_media_type(e.to_string()))
 }
 
-/// Decodes uploaded bytes off the async threads and checks that the array is
-/// 2D or 3D. `field` names the input in errors.
+/// Decodes uploaded bytes on the solver pool (admitted like a solve: 503 +
+/// `Retry-After` when the pool is full, 504 past the deadline) and checks
+/// that the array is 2D or 3D. Decoding a large or compressed file takes
+/// the memory of its pixels; on the pool, at most one decode per pool thread
+/// holds it at once, instead of one per concurrent upload. `field` names the
+/// input in errors.
 pub async fn decode_upload(
+    state: &AppState,
     bytes: bytes::Bytes,
     hint: Option<Format>,
-    limits: Limits,
     field: &'static str,
 ) -> Result<Decoded, ApiError> {
-    let decoded = tokio::task::spawn_blocking(move || io::decode(&bytes, hint, &limits))
-        .await
-        .map_err(ApiError::internal)?
-        .map_err(|e| io_error(e, field))?;
+    let limits = state.io_limits;
+    let (decoded, _) = state
+        .pool
+        .run("upload", state.solve_timeout, move |_| {
+            io::decode(&bytes, hint, &limits)
+        })
+        .await?;
+    let decoded = decoded.map_err(|e| io_error(e, field))?;
     let ndim = decoded.array.shape().len();
     if !(2..=3).contains(&ndim) {
         return Err(ApiError::invalid_field(
@@ -192,6 +200,8 @@ The array is stored once as canonical NPY; sizes are checked before anything is 
         (status = 415, response = crate::http::openapi::UnsupportedMediaType),
         (status = 422, response = crate::http::openapi::Unprocessable),
         (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
         (status = 507, response = crate::http::openapi::InsufficientStorage),
     )
 )]
@@ -212,7 +222,7 @@ pub async fn upload(
         Some(Err(_)) => None,
         None => format_from_content_type(&headers)?,
     };
-    let decoded = decode_upload(body, hint, state.io_limits, "body").await?;
+    let decoded = decode_upload(&state, body, hint, "body").await?;
     let meta = state
         .store
         .create(
@@ -436,15 +446,17 @@ async fn upload_mesh(
     format: MeshFormat,
 ) -> Result<Response, ApiError> {
     let limits = MeshLimits::default();
-    let loaded = tokio::task::spawn_blocking(move || read_mesh(&body, Some(format), &limits))
-        .await
-        .map_err(ApiError::internal)?
-        .map_err(|e| match e {
-            io::mesh::MeshIoError::TooLarge { .. } => {
-                ApiError::too_large("body", format!("body: {e}"))
-            }
-            _ => ApiError::invalid_field("body", format!("body: {e}")),
-        })?;
+    // On the pool, like an array upload (see `decode_upload`).
+    let (loaded, _) = state
+        .pool
+        .run("upload", state.solve_timeout, move |_| {
+            read_mesh(&body, Some(format), &limits)
+        })
+        .await?;
+    let loaded = loaded.map_err(|e| match e {
+        io::mesh::MeshIoError::TooLarge { .. } => ApiError::too_large("body", format!("body: {e}")),
+        _ => ApiError::invalid_field("body", e.to_string()),
+    })?;
     let store = state.store.clone();
     let meta = crate::datasets::blocking(move || {
         store.create_mesh_blocking(&loaded.mesh, loaded.report.clone(), &[], format.into())

@@ -286,7 +286,7 @@ pub async fn distance(
     let DistanceBody { mut params, file } = body;
     params.validate(&state.op_limits)?;
     let upload = match file {
-        Some((bytes, hint)) => Some(decode_upload(bytes, hint, state.io_limits, "file").await?),
+        Some((bytes, hint)) => Some(decode_upload(&state, bytes, hint, "file").await?),
         None => None,
     };
     if super::jobs::prefers_async(&headers) {
