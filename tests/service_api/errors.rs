@@ -325,3 +325,45 @@ async fn json_downloads_are_refused_for_large_arrays() {
     let v = problem(res, 406).await;
     assert_eq!(v["field"], "Accept");
 }
+
+/// Issue 21, item 2: a photograph with black pixels used as a cost gets a 422
+/// that names the pixel and offers the fixes that work, and each offered
+/// fix, applied to the same request, is answered 200.
+#[tokio::test]
+async fn an_image_with_zero_pixels_as_a_cost_gets_the_fixes() {
+    let app = spawn(|_| {}).await;
+    let img = ArrayData::U8(ArrayD::from_shape_fn(ndarray::IxDyn(&[24, 24]), |ix| {
+        if ix[0] == 12 {
+            0
+        } else {
+            (10 + ix[1] * 9) as u8
+        }
+    }));
+    let id = app.upload(&img).await;
+    let request =
+        |cost: serde_json::Value| json!({"cost": cost, "sources": [{"point": [2.0, 2.0]}]});
+    let v = problem(
+        post_distance(&app, request(json!({"dataset": id}))).await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "cost.dataset", "{v}");
+    let detail = v["detail"].as_str().expect("detail");
+    for hint in [
+        "[12, 0]",
+        "\"interpretation\": \"speed\"",
+        "design",
+        "edges",
+        "epsilon",
+    ] {
+        assert!(detail.contains(hint), "missing {hint:?} in: {detail}");
+    }
+    for fix in [
+        json!({"dataset": id, "interpretation": "speed"}),
+        json!({"dataset": id, "design": {"kind": "edges"}}),
+        json!({"dataset": id, "design": {"kind": "intensity", "value": 100.0}}),
+    ] {
+        let res = post_distance(&app, request(fix.clone())).await;
+        assert_eq!(res.status(), 200, "{fix}: {:?}", res.text().await);
+    }
+}

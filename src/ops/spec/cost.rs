@@ -250,6 +250,14 @@ pub enum InterpretationSpec {
     Speed,
 }
 
+/// The way out for a dataset used as a cost with pixels `<= 0` (a
+/// photograph's black pixels, most often): the two fixes that work.
+const ZERO_PIXEL_FIXES: &str = "an image is not a cost as it stands: take it as a speed \
+     (`\"interpretation\": \"speed\"`: bright is fast, 0 is a wall), or derive a positive cost \
+     from it with a `design` (`{\"kind\": \"edges\"}` follows contours, \
+     `{\"kind\": \"intensity\", \"value\": ...}` follows a grey value; each keeps the cost above \
+     its floor `epsilon`)";
+
 fn metric_error(e: MetricError, from_dataset: bool) -> OpError {
     let field = match e {
         MetricError::MaskLength { .. } => "obstacles",
@@ -257,5 +265,14 @@ fn metric_error(e: MetricError, from_dataset: bool) -> OpError {
         _ if from_dataset => "cost.dataset",
         _ => "cost",
     };
-    OpError::invalid(field, e.to_string())
+    match e {
+        MetricError::BadValue {
+            kind: "cost",
+            value,
+            ..
+        } if from_dataset && value <= 0.0 => {
+            OpError::invalid(field, format!("{e}; {ZERO_PIXEL_FIXES}"))
+        }
+        _ => OpError::invalid(field, e.to_string()),
+    }
 }
