@@ -221,6 +221,24 @@ async fn until_idle(app: &TestApp, op: &str) -> Duration {
     t.elapsed()
 }
 
+/// Polls job `id` until `done(state)` holds; panics after 30 s.
+async fn wait_job(app: &TestApp, id: &str, what: &str, done: impl Fn(&str) -> bool) -> Value {
+    let t = Instant::now();
+    loop {
+        let j: Value = app
+            .get(&format!("/v1/jobs/{id}"))
+            .await
+            .json()
+            .await
+            .expect("job");
+        if done(j["state"].as_str().unwrap_or("")) {
+            return j;
+        }
+        assert!(t.elapsed() < Duration::from_secs(30), "{what}: {j}");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn every_operation_stops_at_its_deadline_on_disconnect_and_as_a_job() {
     let app = spawn(|s| {
@@ -309,20 +327,10 @@ async fn every_operation_stops_at_its_deadline_on_disconnect_and_as_a_job() {
             .as_str()
             .expect("id")
             .to_string();
-        let t = Instant::now();
-        let job = loop {
-            let j: Value = patient
-                .get(&format!("/v1/jobs/{id}"))
-                .await
-                .json()
-                .await
-                .expect("job");
-            if ["failed", "succeeded", "cancelled"].contains(&j["state"].as_str().unwrap_or("")) {
-                break j;
-            }
-            assert!(t.elapsed() < Duration::from_secs(30), "{op}: {j}");
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        };
+        let job = wait_job(&patient, &id, op, |st| {
+            ["failed", "succeeded", "cancelled"].contains(&st)
+        })
+        .await;
         assert_eq!(job["state"], "failed", "{op}: {job}");
         assert_eq!(
             job["error"]["type"], "https://geodex.dev/problems/time-limit",
@@ -341,18 +349,10 @@ async fn every_operation_stops_at_its_deadline_on_disconnect_and_as_a_job() {
             .as_str()
             .expect("id")
             .to_string();
-        let t = Instant::now();
-        while patient
-            .get(&format!("/v1/jobs/{id}"))
-            .await
-            .json::<Value>()
-            .await
-            .expect("job")["state"]
-            != "running"
-        {
-            assert!(t.elapsed() < Duration::from_secs(30), "{op}: never ran");
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
+        wait_job(&patient, &id, &format!("{op}: never ran"), |st| {
+            st == "running"
+        })
+        .await;
         let cancelled_at = Instant::now();
         let res = patient
             .client
@@ -362,22 +362,10 @@ async fn every_operation_stops_at_its_deadline_on_disconnect_and_as_a_job() {
             .await
             .expect("cancel");
         assert!(res.status().is_success(), "{op}: cancel {}", res.status());
-        loop {
-            let j: Value = patient
-                .get(&format!("/v1/jobs/{id}"))
-                .await
-                .json()
-                .await
-                .expect("job");
-            if j["state"] == "cancelled" {
-                break;
-            }
-            assert!(
-                cancelled_at.elapsed() < Duration::from_secs(30),
-                "{op}: not cancelled: {j}"
-            );
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
+        wait_job(&patient, &id, &format!("{op}: not cancelled"), |st| {
+            st == "cancelled"
+        })
+        .await;
         until_idle(&patient, op).await;
         let freed = cancelled_at.elapsed();
         assert!(

@@ -97,10 +97,8 @@ impl<S: Send + Sync> FromRequest<S> for ApiBytes {
 
 /// Maps a failure to read the body.
 pub fn bytes_rejection(e: BytesRejection) -> ApiError {
-    if let Some(stalled) = super::server::stalled_in(&e) {
-        return ApiError::request_timeout(format!(
-            "{stalled}; send the body without pauses that long (the server's --body-timeout-secs)"
-        ));
+    if let Some(p) = super::server::stalled_problem(&e) {
+        return p;
     }
     if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
         ApiError::too_large("body", "the body is larger than the configured limit")

@@ -81,6 +81,16 @@ pub fn stalled_in<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a Bo
     None
 }
 
+/// The 408 for a body read that failed because the body stalled (a
+/// [`BodyStalled`] in `e`'s sources), for every extractor that reads a body.
+pub fn stalled_problem(e: &(dyn std::error::Error + 'static)) -> Option<crate::problem::ApiError> {
+    stalled_in(e).map(|stalled| {
+        crate::problem::ApiError::request_timeout(format!(
+            "{stalled}; send the body without pauses that long (the server's --body-timeout-secs)"
+        ))
+    })
+}
+
 /// Descriptors kept free for the database, files and the refusals.
 const FD_RESERVE: usize = 256;
 /// Refusals (503 written on a fresh connection) in progress at most; beyond

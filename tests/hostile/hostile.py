@@ -130,16 +130,25 @@ def read_status(sock, timeout):
     return int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else None
 
 
+def raw_request(server, head, timeout):
+    """Sends `head` (request line, headers and any body bytes) on a fresh
+    connection; returns the answer's status and the seconds it took."""
+    sock = socket.create_connection(("127.0.0.1", server.port))
+    try:
+        t0 = time.perf_counter()
+        sock.sendall(head)
+        status = read_status(sock, timeout)
+        return status, time.perf_counter() - t0
+    finally:
+        sock.close()
+
+
 def declared_413(binary):
     s = Server(binary)
     try:
-        sock = socket.create_connection(("127.0.0.1", s.port))
-        t0 = time.perf_counter()
-        sock.sendall(b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n"
-                     b"Content-Length: 300000000\r\n\r\n")
-        status = read_status(sock, 5)
-        dt = (time.perf_counter() - t0) * 1000
-        sock.close()
+        status, dt = raw_request(s, b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n"
+                                    b"Content-Length: 300000000\r\n\r\n", 5)
+        dt *= 1000
         check("declared-413", status == 413 and dt < 1000,
               f"status {status} after {dt:.1f} ms with 0 body bytes sent (300 MB declared)")
     finally:
@@ -149,13 +158,8 @@ def declared_413(binary):
 def stalled_body(binary):
     s = Server(binary, "--body-timeout-secs", "2")
     try:
-        sock = socket.create_connection(("127.0.0.1", s.port))
-        t0 = time.perf_counter()
-        sock.sendall(b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n"
-                     b"Content-Length: 1000\r\n\r\n0123456789")
-        status = read_status(sock, 10)
-        dt = time.perf_counter() - t0
-        sock.close()
+        status, dt = raw_request(s, b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n"
+                                    b"Content-Length: 1000\r\n\r\n0123456789", 10)
         check("stalled-body", status == 408 and dt < 3.0,
               f"status {status} after {dt:.2f} s (body timeout 2 s, 10 of 1000 bytes sent)")
     finally:

@@ -127,10 +127,8 @@ pub struct DistanceBody {
 }
 
 fn multipart_error(e: axum::extract::multipart::MultipartError) -> ApiError {
-    if let Some(stalled) = crate::http::server::stalled_in(&e) {
-        return ApiError::request_timeout(format!(
-            "{stalled}; send the body without pauses that long (the server's --body-timeout-secs)"
-        ));
+    if let Some(p) = crate::http::server::stalled_problem(&e) {
+        return p;
     }
     if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
         ApiError::too_large("body", "the body is larger than the configured limit")

@@ -178,9 +178,7 @@ impl TriMesh {
     /// ```
     pub fn check_representable(&self) -> Result<(), MeshError> {
         let extent = check_scale(&self.positions, &self.faces)?;
-        let dist = |a: [f64; 3], b: [f64; 3]| {
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        };
+        let dist = |a: [f64; 3], b: [f64; 3]| norm(sub(a, b));
         for (face, f) in self.faces.iter().enumerate() {
             let p = f.map(|v| self.positions[v as usize]);
             let longest = dist(p[0], p[1]).max(dist(p[1], p[2])).max(dist(p[2], p[0]));
