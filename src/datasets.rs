@@ -474,7 +474,20 @@ impl DatasetStore {
         source_format: SourceFormat,
     ) -> Result<DatasetMeta, StoreError> {
         let store = Arc::clone(self);
-        blocking(move || store.create_blocking(&array, spacing, source_format)).await
+        blocking(move || {
+            let meta = store.create_blocking(&array, spacing, source_format)?;
+            // A result is usually fetched right away (a picture, an NPY):
+            // keep the decoded array, which costs no copy.
+            store.cache_insert(
+                &meta.id,
+                &InputArray {
+                    array,
+                    spacing: meta.spacing.clone(),
+                },
+            );
+            Ok(meta)
+        })
+        .await
     }
 
     /// Async [`Self::load_blocking`].

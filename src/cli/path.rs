@@ -67,6 +67,10 @@ pub struct PathArgs {
     /// Compute the whole distance map instead of stopping at the end points.
     #[arg(long)]
     pub no_early_stop: bool,
+    /// Simplify each path to this tolerance in cells (Ramer–Douglas–Peucker;
+    /// every dropped vertex within it of the polyline). 0 keeps every vertex.
+    #[arg(long, default_value_t = 0.0, value_name = "CELLS")]
+    pub simplify: f64,
     /// Output format.
     #[arg(long, value_enum, default_value_t = FormatArg::Json)]
     pub format: FormatArg,
@@ -151,6 +155,7 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
         factoring: !scheme.no_factoring,
         early_stop: !args.no_early_stop,
         step: 0.5,
+        simplify: args.simplify,
         format: match args.format {
             FormatArg::Json => PathFormat::Json,
             FormatArg::Geojson => PathFormat::Geojson,

@@ -78,6 +78,15 @@ const TURBO: [[u8; 3]; 17] = [
     [144, 13, 0],
 ];
 
+/// `v` in `[0, 255]` rounded to the nearest integer, halves up: the cast
+/// truncates, so `v + 0.5` truncated is the rounding for `v >= 0`, without
+/// the libm call that `f64::round` is on baseline x86-64 (a third of the
+/// time of a 1024² picture went to `round` and `floor`).
+#[inline]
+fn round_u8(v: f64) -> u8 {
+    (v + 0.5) as u8
+}
+
 /// A continuous colour map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "server", derive(utoipa::ToSchema))]
@@ -108,14 +117,15 @@ impl Colormap {
             Colormap::Viridis => &VIRIDIS,
             Colormap::Turbo => &TURBO,
             // Rounded and clamped, so the cast is exact.
-            Colormap::Grey => return [(t * 255.0).round() as u8; 3],
+            Colormap::Grey => return [round_u8(t * 255.0); 3],
         };
         let x = t * (table.len() - 1) as f64;
         // In 0..=16 since t is in [0, 1].
-        let k = (x.floor() as usize).min(table.len() - 2);
+        // `x >= 0`: the cast truncates, which is the floor (and no libm call).
+        let k = (x as usize).min(table.len() - 2);
         let f = x - k as f64;
         let (a, b) = (table[k], table[k + 1]);
-        let mix = |i: usize| (f64::from(a[i]) * (1.0 - f) + f64::from(b[i]) * f).round() as u8;
+        let mix = |i: usize| round_u8(f64::from(a[i]) * (1.0 - f) + f64::from(b[i]) * f);
         [mix(0), mix(1), mix(2)]
     }
 }
@@ -219,7 +229,7 @@ fn shown_plane(array: &ArrayData) -> Result<(usize, usize, Vec<f64>), IoError> {
 fn contrast(c: [u8; 3]) -> [u8; 3] {
     let luma = 0.2126 * f64::from(c[0]) + 0.7152 * f64::from(c[1]) + 0.0722 * f64::from(c[2]);
     let target = if luma >= 100.0 { 0.0 } else { 255.0 };
-    c.map(|v| (f64::from(v) * 0.4 + target * 0.6).round() as u8)
+    c.map(|v| round_u8(f64::from(v) * 0.4 + target * 0.6))
 }
 
 /// Renders an array as an 8-bit RGB PNG (see the [module](self) docs for
@@ -293,22 +303,28 @@ pub fn render_png(array: &ArrayData, options: &RenderOptions) -> Result<Vec<u8>,
                 // Bands are clamped to the range, so that no line is drawn at
                 // `hi` itself (nor outside an explicit range).
                 let top = ((span / step).ceil() - 1.0).max(0.0);
-                let band = |v: f64| {
-                    v.is_finite()
-                        .then(|| ((v - lo) / step).floor().clamp(0.0, top))
-                };
+                // Each cell's band, once (NaN where the value is not finite,
+                // which differs from nothing below).
+                let bands: Vec<f64> = values
+                    .iter()
+                    .map(|&v| {
+                        if v.is_finite() {
+                            // `v >= lo`: truncation is the floor.
+                            (((v - lo) / step) as u64 as f64).min(top)
+                        } else {
+                            f64::NAN
+                        }
+                    })
+                    .collect();
+                let differs = |a: f64, b: f64| !a.is_nan() && !b.is_nan() && a != b;
                 for r in 0..rows {
                     for c in 0..cols {
-                        let here = band(values[r * cols + c]);
-                        let differs = |other: Option<f64>| matches!((here, other), (Some(a), Some(b)) if a != b);
-                        let right = (c + 1 < cols)
-                            .then(|| band(values[r * cols + c + 1]))
-                            .flatten();
-                        let down = (r + 1 < rows)
-                            .then(|| band(values[(r + 1) * cols + c]))
-                            .flatten();
-                        if differs(right) || differs(down) {
-                            pixels[r * cols + c] = contrast(pixels[r * cols + c]);
+                        let i = r * cols + c;
+                        let here = bands[i];
+                        let right = c + 1 < cols && differs(here, bands[i + 1]);
+                        let down = r + 1 < rows && differs(here, bands[i + cols]);
+                        if right || down {
+                            pixels[i] = contrast(pixels[i]);
                         }
                     }
                 }

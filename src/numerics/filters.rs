@@ -147,18 +147,22 @@ pub fn gaussian_smooth(
             continue;
         }
         let k = kernel(s);
-        let r = (k.len() / 2) as isize;
+        let r = k.len() / 2;
         let n = shape[axis];
-        let mut tmp = vec![0.0; n];
+        // The line extended by `r` mirrored values at each end, so that the
+        // taps need no index arithmetic: `ext[t + q] = line[mirror(t + q - r)]`.
+        let mut ext = vec![0.0; n + 2 * r];
         for_each_line(grid, &mut out, axis, control, |line| {
-            for (t, slot) in tmp.iter_mut().enumerate() {
+            for (e, slot) in ext.iter_mut().enumerate() {
+                *slot = line[mirror(e as isize - r as isize, n)];
+            }
+            for (t, slot) in line.iter_mut().enumerate() {
                 let mut acc = 0.0;
-                for (q, w) in k.iter().enumerate() {
-                    acc += w * line[mirror(t as isize + q as isize - r, n)];
+                for (w, v) in k.iter().zip(&ext[t..t + k.len()]) {
+                    acc += w * v;
                 }
                 *slot = acc;
             }
-            line.copy_from_slice(&tmp);
         })?;
     }
     Ok(out)

@@ -240,9 +240,20 @@ pub fn design(
             check_positive("epsilon", d.epsilon)?;
             let v = vesselness(grid, f, d, control)?;
             Ok(v.iter()
-                .map(|&v| 1.0 / (d.epsilon + v.powf(d.power)))
+                .map(|&v| 1.0 / (d.epsilon + power(v, d.power)))
                 .collect())
         }
+    }
+}
+
+/// `v^p` for `v >= 0`; `p = 1` (the default of every design) skips `powf`,
+/// whose result is then `v` exactly anyway.
+#[inline]
+fn power(v: f64, p: f64) -> f64 {
+    if p == 1.0 {
+        v
+    } else {
+        v.powf(p)
     }
 }
 
@@ -316,7 +327,7 @@ pub fn intensity(
         }
     };
     Ok(f.iter()
-        .map(|&v| (v - c).abs().powf(d.power) + d.epsilon)
+        .map(|&v| power((v - c).abs(), d.power) + d.epsilon)
         .collect())
 }
 
@@ -365,7 +376,7 @@ pub fn edges(
     let g = edge_strength(grid, f, d.sigma, control)?;
     Ok(g.iter()
         .map(|&g| {
-            let t = d.epsilon + g.powf(d.power);
+            let t = d.epsilon + power(g, d.power);
             match d.mode {
                 EdgeMode::Follow => 1.0 / t,
                 EdgeMode::Barrier => t,

@@ -50,6 +50,7 @@ pub mod metric;
 pub mod metric_design;
 pub mod paths;
 pub mod planning;
+pub mod polyline;
 pub mod prefetch;
 pub mod sampling;
 pub mod segmentation;

@@ -3,6 +3,7 @@
 //! solve are the shared distance section ([`crate::ops::spec::distance`]);
 //! this file makes it an operation.
 
+use super::spec::distance::execute_sharing;
 pub use super::spec::distance::{execute, GridDistanceRequest, GridDistanceResult, SolveStats};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
@@ -27,7 +28,8 @@ impl Operation for GridDistanceRequest {
         limits: &OpLimits,
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
-        let result = execute(self, inputs, limits, control)?;
+        // The map is shared with the paths that follow (see `execute_sharing`).
+        let result = execute_sharing(self, inputs, limits, control, true)?;
         let spacing = Some(result.spacing.clone());
         let mut arrays = vec![OutputArray {
             name: "distance".into(),

@@ -31,11 +31,10 @@
 //! Their `cost_key` includes the metric all the same, so it can never match
 //! an isotropic entry.
 
-mod cache;
 mod render;
 mod solve;
 
-pub use cache::{CachedCost, CachedMap, DistanceCache};
+pub use super::spec::map_cache::{CachedCost, CachedMap, DistanceCache};
 pub use solve::execute;
 
 use std::sync::Arc;
@@ -45,13 +44,14 @@ use utoipa::ToSchema;
 
 use super::spec::cost::CostSpec;
 use super::spec::distance::GridDistanceRequest;
+use super::spec::map_cache;
 use super::spec::scheme::{
     check_metric_choice, metric_dataset_ids, refuse_dataset_sources, ConnectivitySpec, MethodSpec,
     OutputSpec, SourceSpec, StopSpec,
 };
 use super::spec::tensor::TensorSpec;
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
-use crate::numerics::paths::{MinimalPath, SourceSet};
+use crate::numerics::paths::MinimalPath;
 use crate::numerics::{Control, Grid};
 use crate::ops::spec::defaults::default_order;
 use crate::ops::spec::defaults::default_step;
@@ -117,6 +117,14 @@ pub struct GridPathsRequest {
     #[serde(default = "default_step")]
     #[schema(exclusive_minimum = 0.0, maximum = 0.5)]
     pub step: f64,
+    /// Tolerance, in cells, of the Ramer–Douglas–Peucker simplification of
+    /// each path's vertices ([`crate::numerics::polyline`]): every dropped
+    /// vertex lies within `simplify` cells of the returned polyline. The
+    /// lengths are those of the full path. Default: 0, every vertex (one per
+    /// `step`). A front end drawing on screen wants about 0.25.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    #[schema(minimum = 0.0, maximum = 100.0)]
+    pub simplify: f64,
     /// Answer format: `json` (default), `geojson` (a FeatureCollection of
     /// LineStrings, 2D) or `svg` (the paths over a PNG of the image, 2D).
     #[serde(default)]
@@ -137,6 +145,11 @@ impl PartialEq for PinnedCost {
     fn eq(&self, _: &Self) -> bool {
         true
     }
+}
+
+/// Serde's `skip_serializing_if` for a zero tolerance.
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// The answer format of `grid.paths`.
@@ -178,8 +191,24 @@ pub struct PathOut {
 }
 
 impl PathOut {
-    /// The answer's form of a descended path (`index` as in [`PathOut::index`]).
-    fn new(index: usize, end: &[f64], path: &MinimalPath, grid: &Grid) -> Self {
+    /// The answer's form of a descended path (`index` as in
+    /// [`PathOut::index`]), its vertices simplified to `simplify` cells.
+    fn new(index: usize, end: &[f64], path: &MinimalPath, grid: &Grid, simplify: f64) -> Self {
+        let simplified;
+        let path = if simplify > 0.0 {
+            let kept = crate::numerics::polyline::simplify(&path.points, simplify);
+            simplified = MinimalPath {
+                points: kept.iter().map(|&k| path.points[k]).collect(),
+                source: path.source,
+                geodesic_length: path.geodesic_length,
+                euclidean_length: path.euclidean_length,
+                continuous_steps: path.continuous_steps,
+                discrete_steps: path.discrete_steps,
+            };
+            &simplified
+        } else {
+            path
+        };
         Self {
             index,
             source: path.source,
@@ -397,6 +426,15 @@ impl GridPathsRequest {
                 format!("{} must be in (0, 0.5] cells", self.step),
             ));
         }
+        if !(self.simplify.is_finite() && (0.0..=100.0).contains(&self.simplify)) {
+            return Err(OpError::invalid(
+                "simplify",
+                format!(
+                    "{} must be in [0, 100] cells (0 keeps every vertex)",
+                    self.simplify
+                ),
+            ));
+        }
         if let Some(spacing) = &self.spacing {
             if let Some(k) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
                 return Err(OpError::invalid(
@@ -496,18 +534,23 @@ impl GridPathsRequest {
 
     /// Cache key of the cost: everything that determines the metric and the grid.
     pub fn cost_key(&self) -> String {
-        serde_json::json!([self.cost, self.metric, self.spacing, self.obstacles]).to_string()
+        map_cache::cost_key(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+        )
     }
 
     fn map_key(&self, cost_key: &str, sources: &[SourceSpec]) -> String {
-        let scheme = serde_json::json!([
+        map_cache::map_key(
+            cost_key,
             sources,
             self.method,
             self.order,
             self.factoring,
-            self.connectivity
-        ]);
-        format!("{cost_key}|{scheme}")
+            self.connectivity,
+        )
     }
 }
 
@@ -593,6 +636,10 @@ mod tests {
                 serde_json::json!({"cost": cost, "waypoints": [[1.0, 1.0], [2.0, 2.0]], "step": 0.7}),
                 "step",
             ),
+            (
+                serde_json::json!({"cost": cost, "waypoints": [[1.0, 1.0], [2.0, 2.0]], "simplify": -0.1}),
+                "simplify",
+            ),
         ];
         for (v, field) in bad {
             let r = request(v.clone());
@@ -642,6 +689,128 @@ mod tests {
             .svg
             .unwrap();
         assert!(s.starts_with("<svg") && s.contains("<polyline") && s.ends_with("</svg>"));
+    }
+
+    #[test]
+    fn simplified_paths_keep_their_ends_lengths_and_tolerance() {
+        // Straight paths on a constant cost: the full path has a vertex per
+        // half cell; the simplified one keeps the ends and the lengths, and
+        // stays within the tolerance of every full vertex.
+        let inputs: HashMap<String, InputArray> = HashMap::new();
+        let limits = OpLimits::default();
+        let body = |simplify: f64| {
+            request(serde_json::json!({
+                "cost": {"constant": 1.0, "shape": [60, 60]},
+                "sources": [{"point": [5.0, 5.0]}],
+                "ends": [[50.0, 40.0], [7.0, 52.5]],
+                "simplify": simplify
+            }))
+        };
+        let full = execute(&body(0.0), &inputs, &limits, &Control::new(), None, None).unwrap();
+        let tol = 0.25;
+        let simple = execute(&body(tol), &inputs, &limits, &Control::new(), None, None).unwrap();
+        for (f, s) in full.paths.iter().zip(&simple.paths) {
+            assert!(f.points.len() > 40, "{}", f.points.len());
+            assert!(
+                s.points.len() * 5 < f.points.len(),
+                "{} of {}",
+                s.points.len(),
+                f.points.len()
+            );
+            assert_eq!(f.points.first(), s.points.first());
+            assert_eq!(f.points.last(), s.points.last());
+            assert_eq!(f.geodesic_length, s.geodesic_length);
+            assert_eq!(s.points.len(), s.world.len());
+            let seg = |p: &[f64], a: &[f64], b: &[f64]| {
+                let (ab0, ab1) = (b[0] - a[0], b[1] - a[1]);
+                let l2 = ab0 * ab0 + ab1 * ab1;
+                let t = if l2 > 0.0 {
+                    (((p[0] - a[0]) * ab0 + (p[1] - a[1]) * ab1) / l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (p[0] - a[0] - t * ab0).hypot(p[1] - a[1] - t * ab1)
+            };
+            for p in &f.points {
+                let d = s
+                    .points
+                    .windows(2)
+                    .map(|w| seg(p, &w[0], &w[1]))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(d <= tol + 1e-12, "{p:?} is {d} from the simplified path");
+            }
+        }
+    }
+
+    /// Inputs with the interactive cache, as the HTTP layer has them.
+    struct Cached(HashMap<String, InputArray>, DistanceCache);
+
+    impl Inputs for Cached {
+        fn get(&self, id: &str) -> Option<InputArray> {
+            self.0.get(id).cloned()
+        }
+        fn distance_cache(&self) -> Option<&DistanceCache> {
+            Some(&self.1)
+        }
+    }
+
+    #[test]
+    fn a_distance_map_serves_the_paths_that_follow() {
+        use crate::ops::grid_distance::GridDistanceRequest;
+        let image = ndarray::ArrayD::from_shape_fn(vec![40, 50], |i| {
+            if i[1] == 25 && i[0] > 8 {
+                10u8
+            } else {
+                200u8
+            }
+        });
+        let mut arrays = HashMap::new();
+        arrays.insert(
+            "img".to_string(),
+            InputArray {
+                array: Arc::new(crate::io::ArrayData::U8(image)),
+                spacing: None,
+            },
+        );
+        let inputs = Cached(arrays, DistanceCache::new(1 << 24));
+        let limits = OpLimits::default();
+        let cost =
+            serde_json::json!({"dataset": "img", "design": {"kind": "intensity", "value": 200}});
+        let sources = serde_json::json!([{"point": [30.0, 5.0]}]);
+        let distance: GridDistanceRequest =
+            serde_json::from_value(serde_json::json!({"cost": cost, "sources": sources})).unwrap();
+        let shown = Operation::run(&distance, &inputs, &limits, &Control::new()).unwrap();
+        assert_eq!(inputs.1.len(), (1, 1), "the cost and the map are kept");
+        let paths = request(serde_json::json!({
+            "cost": cost, "sources": sources, "ends": [[30.0, 45.0]], "early_stop": false
+        }));
+        let out = execute(
+            &paths,
+            &inputs,
+            &limits,
+            &Control::new(),
+            Some(&inputs.1),
+            None,
+        )
+        .unwrap();
+        assert!(
+            out.stats.cost_cached && out.stats.maps[0].cached,
+            "{:?}",
+            out.stats
+        );
+        // The same path as from a map of its own (no cache).
+        let plain = execute(&paths, &inputs.0, &limits, &Control::new(), None, None).unwrap();
+        assert_eq!(out.paths[0].points, plain.paths[0].points);
+        // It goes around the wall's end (row <= 8).
+        assert!(out.paths[0].points.iter().any(|p| p[0] <= 9.0));
+        // A partial solve (early stop) is not kept, nor a job's (no cache).
+        let partial: GridDistanceRequest = serde_json::from_value(serde_json::json!({
+            "cost": cost, "sources": [{"point": [3.0, 3.0]}], "stop": {"max_distance": 2.0}
+        }))
+        .unwrap();
+        Operation::run(&partial, &inputs, &limits, &Control::new()).unwrap();
+        assert_eq!(inputs.1.len(), (1, 1));
+        assert!(shown.arrays.iter().any(|a| a.name == "distance"));
     }
 
     #[test]

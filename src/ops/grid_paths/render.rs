@@ -6,9 +6,9 @@ use std::fmt::Write as _;
 
 use base64::Engine as _;
 
-use super::cache::CachedCost;
 use super::{ChainOut, GridPathsRequest, PathOut};
 use crate::io::{render_png, ArrayData, Colormap, RenderOptions, RenderStyle};
+use crate::ops::spec::map_cache::CachedCost;
 use crate::ops::{Inputs, OpError};
 
 /// GeoJSON FeatureCollection: one LineString per path (and one for the

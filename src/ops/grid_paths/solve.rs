@@ -5,7 +5,6 @@ use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::cache::{CachedCost, CachedMap, DistanceCache};
 use super::render::{geojson, svg};
 use super::*;
 use crate::numerics::anisotropic::descent::Riemannian;
@@ -16,6 +15,7 @@ use crate::numerics::paths::{
 use crate::numerics::{self, Control, EikonalProblem, IsotropicCost, Source, StopRules};
 use crate::ops::spec::cost::resolve_cost;
 use crate::ops::spec::errors::eikonal_error;
+use crate::ops::spec::map_cache::{CachedCost, CachedMap, DistanceCache};
 use crate::ops::spec::scheme::{stop_name, SourceSpec};
 use crate::ops::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use crate::ops::{Inputs, OpError, OpLimits};
@@ -150,7 +150,7 @@ pub fn execute(
                 .descend(&map.sources, end, &Isotropic, &descent)
                 .map_err(|e| path_error(e, field, &*leg.source_field))?;
             let index = if chain_mode { leg_index } else { end_index };
-            paths.push(PathOut::new(index, end, &path, grid));
+            paths.push(PathOut::new(index, end, &path, grid, req.simplify));
         }
         descent_seconds += t.elapsed().as_secs_f64();
     }
@@ -266,7 +266,7 @@ fn execute_tensor(
                 .descend(&set, end, &riemannian, &descent)
                 .map_err(|e| path_error(e, field, &*leg.source_field))?;
             let index = if chain_mode { leg_index } else { end_index };
-            paths.push(PathOut::new(index, end, &path, grid));
+            paths.push(PathOut::new(index, end, &path, grid, req.simplify));
         }
         descent_seconds += t.elapsed().as_secs_f64();
     }

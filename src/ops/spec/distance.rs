@@ -6,6 +6,7 @@
 //! Coordinates are in array index order (axis 0 first) and in index units;
 //! physical lengths are index offsets times the per-axis `spacing`.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use ndarray::{ArrayD, ArrayViewD, IxDyn};
@@ -13,9 +14,10 @@ use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::cost::{resolve_cost, CostSpec};
+use super::cost::{resolve_cost, CostSpec, ResolvedCost};
 use super::defaults::{default_order, default_true};
 use super::errors::eikonal_error;
+use super::map_cache::{cost_key, map_key, CachedCost, CachedMap, DistanceCache};
 use super::scheme::{
     check_metric_choice, level_set_error, metric_dataset_ids, phi_of, resolve_sources,
     source_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec, StopSpec,
@@ -25,7 +27,8 @@ use crate::numerics::eikonal::{
     level_set_distance, Connectivity, EikonalOptions, EikonalProblem, InterfaceFit,
     LevelSetOptions, Method, Order,
 };
-use crate::numerics::{self, Control};
+use crate::numerics::paths::SourceSet;
+use crate::numerics::{self, Control, StopReason};
 use crate::ops::spec::grid::fetch;
 use crate::ops::{Inputs, OpError, OpLimits};
 
@@ -248,6 +251,21 @@ pub fn execute(
     limits: &OpLimits,
     control: &Control<'_>,
 ) -> Result<GridDistanceResult, OpError> {
+    execute_sharing(req, inputs, limits, control, false)
+}
+
+/// [`execute`]; with `share`, a completed isotropic solve from point sources
+/// is also kept in the caller's [`DistanceCache`] (when `inputs` has one),
+/// under the keys `grid.paths` looks up: the paths a front end asks for
+/// next, from the same sources, descend this very map instead of solving it
+/// again. Jobs and the command line have no cache; nothing is kept there.
+pub fn execute_sharing(
+    req: &GridDistanceRequest,
+    inputs: &dyn Inputs,
+    limits: &OpLimits,
+    control: &Control<'_>,
+    share: bool,
+) -> Result<GridDistanceResult, OpError> {
     req.validate(limits)?;
     let cost = match (&req.cost, &req.metric) {
         (Some(cost), _) => cost,
@@ -289,7 +307,11 @@ pub fn execute(
                 sources,
             };
             started = Instant::now();
-            numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?
+            let out = numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?;
+            if let Some(cache) = inputs.distance_cache().filter(|_| share) {
+                share_map(cache, req, &resolved, &problem, &out)?;
+            }
+            out
         }
     };
     let solve_seconds = started.elapsed().as_secs_f64();
@@ -308,6 +330,63 @@ pub fn execute(
         distance: out.distance,
         spacing,
     })
+}
+
+/// Keeps the cost and the map of a completed solve from point sources in
+/// `cache` (see [`execute_sharing`]); other solves are left out (a partial
+/// map, cells, masks or level sets as sources, a tensor metric).
+fn share_map(
+    cache: &DistanceCache,
+    req: &GridDistanceRequest,
+    resolved: &ResolvedCost,
+    problem: &EikonalProblem<'_>,
+    out: &numerics::EikonalOutput,
+) -> Result<(), OpError> {
+    let points_only = req.sources.iter().all(|s| {
+        s.point.is_some() && s.cells.is_none() && s.mask.is_none() && s.level_set.is_none()
+    });
+    if !(points_only && req.stop == StopSpec::default() && out.stop == StopReason::Completed) {
+        return Ok(());
+    }
+    let key = cost_key(
+        req.cost.as_ref(),
+        None,
+        req.spacing.as_deref(),
+        req.obstacles.as_deref(),
+    );
+    let cost = match cache.cost(&key) {
+        Some(c) => c,
+        None => {
+            let c = Arc::new(CachedCost {
+                grid: problem.grid.clone(),
+                spacing: resolved.spacing.clone(),
+                w: resolved.cost_values()?,
+            });
+            cache.put_cost(key.clone(), c.clone());
+            c
+        }
+    };
+    let Ok(sources) = SourceSet::new(&problem.grid, &problem.sources) else {
+        return Ok(());
+    };
+    let map = CachedMap {
+        cost,
+        sources,
+        u: out.distance.iter().copied().collect(),
+        complete: true,
+        frozen: out.frozen as u64,
+        stop: stop_name(out.stop).into(),
+    };
+    let key = map_key(
+        &key,
+        &req.sources,
+        req.method,
+        req.order,
+        req.factoring,
+        req.connectivity,
+    );
+    cache.put_map(key, Arc::new(map));
+    Ok(())
 }
 
 /// `grid.distance` with a tensor `metric`: the anisotropic solve of

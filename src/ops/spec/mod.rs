@@ -15,6 +15,8 @@
 //! * [`mesh`]: surface points, mesh methods, the mesh input and the
 //!   distance solve shared by the mesh operations.
 //! * [`shape`]: size limits, symmetrisation and errors of the shape operations.
+//! * [`map_cache`]: designed costs and distance maps kept between requests
+//!   (`grid.paths`, `grid.distance`), with their keys.
 //! * [`errors`]: core errors as [`crate::ops::OpError`]s naming the field.
 //! * [`defaults`]: the serde defaults.
 
@@ -24,6 +26,7 @@ pub mod design;
 pub mod distance;
 pub mod errors;
 pub mod grid;
+pub mod map_cache;
 pub mod mesh;
 pub mod scheme;
 pub mod shape;

@@ -1,12 +1,44 @@
 //! [`DistanceCache`]: designed costs and distance maps kept between
-//! `grid.paths` requests, bounded in bytes, least recently used out first,
-//! so that a front end following the mouse only pays for the descents.
+//! requests, bounded in bytes, least recently used out first, so that a
+//! front end following the mouse only pays for the descents.
+//!
+//! Who fills it: `grid.paths` (its costs and maps), and `grid.distance`
+//! (its designed cost and, for point sources solved to completion, its map),
+//! so that the map a user just looked at serves the paths that follow. The
+//! keys are [`cost_key`] and [`map_key`]: the request's JSON sections, so
+//! that two operations asking for the same problem meet on the same entry.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use crate::numerics::paths::SourceSet;
 use crate::numerics::Grid;
-use crate::ops::grid_paths::SourceSet;
+use crate::ops::spec::cost::CostSpec;
+use crate::ops::spec::scheme::{ConnectivitySpec, MethodSpec, SourceSpec};
+use crate::ops::spec::tensor::TensorSpec;
+
+/// The key of a cost: its `cost`/`metric`, `spacing` and `obstacles` sections.
+pub fn cost_key(
+    cost: Option<&CostSpec>,
+    metric: Option<&TensorSpec>,
+    spacing: Option<&[f64]>,
+    obstacles: Option<&str>,
+) -> String {
+    serde_json::json!([cost, metric, spacing, obstacles]).to_string()
+}
+
+/// The key of a distance map: its cost's key, its sources and its scheme.
+pub fn map_key(
+    cost_key: &str,
+    sources: &[SourceSpec],
+    method: MethodSpec,
+    order: u8,
+    factoring: bool,
+    connectivity: ConnectivitySpec,
+) -> String {
+    let scheme = serde_json::json!([sources, method, order, factoring, connectivity]);
+    format!("{cost_key}|{scheme}")
+}
 
 /// A cost ready for solves and descents: the grid and `W` per cell (`+inf` on walls).
 #[derive(Debug, Clone)]
