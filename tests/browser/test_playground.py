@@ -96,8 +96,14 @@ class Page:
     def __init__(self):
         opts = webdriver.ChromeOptions()
         opts.binary_location = os.environ.get("CHROMIUM", "/usr/bin/chromium")
+        # No GPU here: WebGL (the mesh view) runs on SwiftShader, but the page
+        # is composited in software, as Chromium does on machines without a
+        # GPU. Compositing through SwiftShader GL instead made every frame of
+        # the 1024² image view take 60-300 ms to start (long-animation-frame
+        # entries with no script: the renderer waiting on the GPU process).
         for a in ["--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1640,1060",
-                  "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--ignore-gpu-blocklist"]:
+                  "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--ignore-gpu-blocklist",
+                  "--disable-gpu-compositing"]:
             opts.add_argument(a)
         opts.set_capability("goog:loggingPrefs", {"browser": "ALL", "performance": "ALL"})
         service = webdriver.ChromeService(executable_path=os.environ.get("CHROMEDRIVER", "/usr/bin/chromedriver"))
@@ -166,13 +172,23 @@ class Page:
         self.js("(function(e,v){e.value=v;e.dispatchEvent(new Event('input'));e.dispatchEvent(new Event('change'));})(document.getElementById(arguments[0]), arguments[1])", el_id, str(value))
 
 
-def live_path_cells(page):
+def live_path_vertices(page):
     """The drawn live path (SVG polyline) back in index coordinates [row, col]."""
     pts = page.js("document.querySelector('#svg polyline.live').getAttribute('points')")
     out = []
     for p in pts.split():
         x, y = map(float, p.split(","))
         out.append((y - 0.5, x - 0.5))
+    return out
+
+
+def densify(vertices, step=0.25):
+    """The polyline through `vertices` sampled every `step` cells or less (the
+    page draws simplified paths: straight segments between few vertices)."""
+    out = [vertices[0]]
+    for (r0, c0), (r1, c1) in zip(vertices, vertices[1:]):
+        n = max(1, math.ceil(math.hypot(r1 - r0, c1 - c0) / step))
+        out += [(r0 + (r1 - r0) * k / n, c0 + (c1 - c0) * k / n) for k in range(1, n + 1)]
     return out
 
 
@@ -218,7 +234,10 @@ def main():
             page.move_cell(*t, N, N)
             page.wait(f"GX.stats.lastPath && Math.abs(GX.stats.lastPath.end[0] - {t[0]}) <= 0.6 && "
                       f"Math.abs(GX.stats.lastPath.end[1] - {t[1]}) <= 0.6", f"the path to {t}")
-            cells = live_path_cells(page)
+            vertices = live_path_vertices(page)
+            assert len(vertices) >= 2, f"path to {t}: {len(vertices)} vertices"
+            # Every point of the drawn line, not only its vertices, is checked.
+            cells = densify(vertices)
             assert len(cells) >= 10, f"path to {t}: {len(cells)} points"
             (r0, c0), (r1, c1) = cells[0], cells[-1]
             assert math.hypot(r0 - src[0], c0 - src[1]) <= 1.0, f"path to {t} starts at {cells[0]}, not at the source"
@@ -299,6 +318,9 @@ def main():
                       f"Math.abs(GX.stats.lastPath.end[1] - {t[1]}) <= 1.5", f"the 1024² path to {t}")
             assert page.js("GX.stats.lastPath.cached"), f"the path to {t} did not use the cached map"
         ms = page.js(f"GX.stats.pathMs.slice({start})")
+        frame_ms = page.js(f"GX.stats.pathFrameMs.slice({start})")
+        frame_gap = page.js("""new Promise(ok => { const t = []; (function f(x) { t.push(x);
+            if (t.length < 31) requestAnimationFrame(f); else ok((t[30] - t[0]) / 30); })(performance.now()); })""")
         fetch_ms = page.js(f"GX.stats.pathFetchMs.slice({start})")
         server_ms = page.js(f"GX.stats.pathServerMs.slice({start})")
         page.shot("image-1024-path")
@@ -364,6 +386,10 @@ def main():
         print(f"latency: pointer move → path drawn on the cached 1024² map: median {statistics.median(ms):.1f} ms, "
               f"min {min(ms):.1f}, max {max(ms):.1f} over {len(ms)} moves (median request round trip "
               f"{statistics.median(fetch_ms):.1f} ms, of which the server's own total {statistics.median(server_ms):.1f} ms)")
+        frames = [round(f / frame_gap) for f in frame_ms]
+        print(f"latency: pointer move → start of the frame that shows the path: median {statistics.median(frame_ms):.1f} ms "
+              f"(frames of {frame_gap:.1f} ms; drawn in the next frame for {frames.count(1)} of {len(frames)} moves, "
+              f"within two frames for {sum(1 for f in frames if f <= 2)})")
     finally:
         d.quit()
 

@@ -26,7 +26,7 @@ window.GX = window.GX || {};
   };
   // What the browser test and a curious developer can read.
   GX.imageState = S;
-  GX.stats = { pathMs: [], pathFetchMs: [], pathServerMs: [], firstMapMs: [], lastPath: null, segment: null };
+  GX.stats = { pathMs: [], pathFrameMs: [], pathFetchMs: [], pathServerMs: [], firstMapMs: [], lastPath: null, segment: null };
 
   // ---- metric -------------------------------------------------------------
 
@@ -80,6 +80,20 @@ window.GX = window.GX || {};
   }
 
   const num = (name) => Number($("mp-" + name).value);
+
+  /**
+   * The scheme of the distance maps behind paths: order 2, with source
+   * factoring only if asked for. Plain order 2 solves a 1024² map in about
+   * 60 % of the time, and its paths differ by a fraction of a cell; the map
+   * of `grid.distance` and the paths that follow use the same scheme, so that
+   * the paths descend the very map on screen (the server keeps it).
+   */
+  function scheme() {
+    return { order: 2, factoring: $("factoring").checked };
+  }
+
+  /** Tolerance (cells) of the paths' simplification (`simplify` of grid.paths). */
+  const PATH_SIMPLIFY = 0.25;
 
   /** The metric section of every grid request: {cost: ...} or {metric: ...}. */
   function metricSection() {
@@ -231,7 +245,7 @@ window.GX = window.GX || {};
     const sec = metricSection();
     let warmed;
     S.warmPromise = new Promise((ok) => { warmed = ok; });
-    const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, sources: [{ point: p }] } });
+    const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }] } });
     if (S.source !== p) return; // a newer click won
     S.distanceId = r.distance.id;
     const ov = $("overlay");
@@ -240,11 +254,13 @@ window.GX = window.GX || {};
     const ms = performance.now() - t0;
     GX.stats.firstMapMs.push(ms);
     GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
-    // Then warm the cache of /v1/grid/paths (after the picture, so that the two
-    // solves do not share the CPU): its first answer computes and keeps the whole
-    // map (early_stop: false); every later pointer move only descends. Pointer
-    // moves wait for it rather than each solving the same map.
-    await GX.api("POST", "/v1/grid/paths", { json: { ...sec, sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
+    // Then make sure /v1/grid/paths holds the map (after the picture). The
+    // server keeps the map grid.distance just solved for the paths of the same
+    // cost, sources and scheme, so this answer is a descent on that map
+    // (stats.maps[0].cached); had it been evicted, this request solves and
+    // keeps the whole map (early_stop: false). Pointer moves wait for it
+    // rather than each solving the same map.
+    await GX.api("POST", "/v1/grid/paths", { json: { ...sec, ...scheme(), sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
       .catch(GX.fail);
     warmed();
     if (S.source === p) S.warmed = p;
@@ -295,16 +311,22 @@ window.GX = window.GX || {};
         S.pending = null;
         const src = S.source;
         const t1 = performance.now();
-        const r = await GX.api("POST", "/v1/grid/paths", { json: { ...metricSection(), sources: [{ point: src }], ends: [p], early_stop: false }, key: "pointer-path" });
+        // `simplify`: vertices within a quarter cell of the drawn line are
+        // dropped (a few dozen instead of one per half cell): less to send,
+        // parse and draw, and nothing visible lost.
+        const r = await GX.api("POST", "/v1/grid/paths", { json: { ...metricSection(), ...scheme(), sources: [{ point: src }], ends: [p], early_stop: false, simplify: PATH_SIMPLIFY }, key: "pointer-path" });
         GX.stats.pathFetchMs.push(performance.now() - t1);
         GX.stats.pathServerMs.push(r.stats.total_seconds * 1000);
         if (S.source !== src) continue;
         const path = r.paths[0];
         if (!S.live) S.live = svgEl("polyline", { class: "live" });
         S.live.setAttribute("points", pts(path.points));
-        await new Promise((ok) => requestAnimationFrame(() => ok()));
+        // Drawn: the next frame's rAF callback (its argument is the frame's
+        // start, the time the frame that shows the path began).
+        const frame = await new Promise((ok) => requestAnimationFrame(ok));
         const ms = performance.now() - t;
         GX.stats.pathMs.push(ms);
+        GX.stats.pathFrameMs.push(frame - t);
         GX.stats.lastPath = { end: p, points: path.points, ms, cached: r.stats.maps.every((m) => m.cached) };
         $("path-info").textContent = `path: ${path.points.length} points, geodesic length ${path.geodesic_length.toPrecision(4)}, euclidean ${path.euclidean_length.toPrecision(4)}; ${ms.toFixed(1)} ms move→drawn (${r.stats.maps[0].cached ? "cached map" : "map solved"}, server ${(r.stats.total_seconds * 1000).toFixed(1)} ms)`;
       }
@@ -331,7 +353,7 @@ window.GX = window.GX || {};
 
   async function closeContour() {
     if (S.chain.length < 3) { GX.status("place at least 3 points (clicks) before closing the contour", true); return; }
-    const r = await GX.api("POST", "/v1/grid/paths", { json: { ...metricSection(), contour: S.chain } });
+    const r = await GX.api("POST", "/v1/grid/paths", { json: { ...metricSection(), ...scheme(), contour: S.chain, simplify: PATH_SIMPLIFY } });
     const chain = S.chain;
     resetPath();
     chain.forEach((p) => marker(p, "way", "#ffcc00"));
@@ -494,6 +516,7 @@ window.GX = window.GX || {};
     document.querySelectorAll("input[name=tool]").forEach((r) => r.addEventListener("change", () => setTool(r.value)));
     $("close-contour").addEventListener("click", () => closeContour().catch(GX.fail));
     $("clear-path").addEventListener("click", resetPath);
+    $("factoring").addEventListener("change", resetPath);
     $("clear-seeds").addEventListener("click", () => { clearAll(); });
     $("seg-radius").addEventListener("input", () => { $("seg-radius-out").textContent = $("seg-radius").value === "0" ? "off" : $("seg-radius").value; runSegment(); });
     $("overlay-opacity").addEventListener("input", () => { $("overlay").style.opacity = $("overlay-opacity").value; });

@@ -12,24 +12,37 @@
   }
   GX.showView = showView;
 
+  /**
+   * Shows the newest 14 requests. Each row is rebuilt only when its request
+   * changed: a pointer move replaces the top row's text, not the whole list,
+   * so that the frame that draws the new path does no extra layout.
+   */
   function renderLog() {
     const box = $("requests");
-    box.innerHTML = "";
-    for (const e of GX.requestLog.slice(0, 14)) {
-      const div = document.createElement("div");
+    const shown = GX.requestLog.slice(0, 14);
+    shown.forEach((e, i) => {
+      let div = box.children[i];
+      if (!div) {
+        div = document.createElement("div");
+        const head = document.createElement("div");
+        head.className = "req-head";
+        const title = document.createElement("span");
+        const copy = document.createElement("button");
+        copy.textContent = "copy";
+        copy.addEventListener("click", () => navigator.clipboard && navigator.clipboard.writeText(div.curl).catch(() => {}));
+        head.append(title, copy);
+        div.append(head, document.createElement("pre"));
+        box.appendChild(div);
+      }
+      const title = `${e.method} ${e.path.split("?")[0]}  ${e.status}  ${e.ms.toFixed(1)} ms`;
+      if (div.title_ === title && div.curl === e.curl) return;
       div.className = "req" + (typeof e.status === "number" && e.status >= 400 ? " bad" : "");
-      const head = document.createElement("div");
-      head.className = "req-head";
-      head.textContent = `${e.method} ${e.path.split("?")[0]}  ${e.status}  ${e.ms.toFixed(1)} ms`;
-      const copy = document.createElement("button");
-      copy.textContent = "copy";
-      copy.addEventListener("click", () => navigator.clipboard && navigator.clipboard.writeText(e.curl).catch(() => {}));
-      head.appendChild(copy);
-      const pre = document.createElement("pre");
-      pre.textContent = e.curl;
-      div.append(head, pre);
-      box.appendChild(div);
-    }
+      div.firstChild.firstChild.textContent = title;
+      div.lastChild.textContent = e.curl;
+      div.title_ = title;
+      div.curl = e.curl;
+    });
+    while (box.children.length > shown.length) box.lastChild.remove();
   }
 
   let pending = false;
