@@ -20,7 +20,7 @@
 //! // Five points on a line and one bump of 0.3 at x = 2.
 //! let p = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.3], [3.0, 0.0], [4.0, 0.0]];
 //! assert_eq!(simplify(&p, 0.5), vec![0, 4]);
-//! assert_eq!(simplify(&p, 0.1), vec![0, 2, 4]);
+//! assert_eq!(simplify(&p, 0.2), vec![0, 2, 4]);
 //! ```
 
 /// The indices of the vertices of `points` kept by Ramer–Douglas–Peucker
