@@ -73,6 +73,8 @@ pub enum Command {
     Sample(segment::SampleArgs),
     /// Mesh an image: vertices placed by a metric, geodesic Delaunay triangles.
     Mesh(segment::MeshArgs),
+    /// Mesh a planar domain (a mask or GeoJSON polygons with holes): boundary first, angles >= 25 deg.
+    MeshDomain(segment::DomainMeshArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -98,6 +100,7 @@ pub fn main() -> ExitCode {
         Some(Command::Plan(args)) => segment::run_plan(&args).map_err(Into::into),
         Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
         Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
+        Some(Command::MeshDomain(args)) => segment::run_domain_mesh(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -27,6 +27,7 @@ use super::run::{run_on, CliRunError};
 use crate::io::mesh::write as mesh_write;
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
+use crate::ops::domain_mesh::{DomainGeometry, DomainMeshRequest};
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
 use crate::ops::grid_mesh::{GridMeshRequest, MeshMetricSpec};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
@@ -283,6 +284,45 @@ pub struct MeshArgs {
     /// Where to write the piecewise-linear approximation of the image (f64 NPY).
     #[arg(long, value_name = "A.npy")]
     pub approximation: Option<PathBuf>,
+    /// Where to write the statistics (JSON).
+    #[arg(long, value_name = "S.json")]
+    pub stats: Option<PathBuf>,
+}
+
+/// `geodex mesh-domain`: mesh a mask or GeoJSON polygons.
+#[derive(Debug, Args)]
+pub struct DomainMeshArgs {
+    /// The domain as a 2D mask (NPY, PNG, ...): its non-zero cells.
+    #[arg(long, value_name = "MASK", conflicts_with = "polygons")]
+    pub mask: Option<PathBuf>,
+    /// The domain as a GeoJSON file (a Polygon or MultiPolygon geometry, or a
+    /// Feature holding one), `[x, y]` = `[column, row]` in index units.
+    #[arg(long, value_name = "DOMAIN.geojson")]
+    pub polygons: Option<PathBuf>,
+    /// About this many vertices.
+    #[arg(long, value_name = "N", conflicts_with = "edge_length")]
+    pub count: Option<usize>,
+    /// Edges of about this length (physical units).
+    #[arg(long, value_name = "H", allow_negative_numbers = true)]
+    pub edge_length: Option<f64>,
+    /// An isotropic metric W (2D, > 0): edges about edge_length / W.
+    #[arg(long, value_name = "W.npy")]
+    pub cost: Option<PathBuf>,
+    /// Smallest angle the refinement reaches, in degrees (0 to 33).
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
+    pub min_angle: f64,
+    /// Relaxation sweeps.
+    #[arg(long, default_value_t = 3)]
+    pub smoothing: usize,
+    /// Tolerance (cells) of the mask boundary's simplification.
+    #[arg(long, default_value_t = 0.36, allow_negative_numbers = true)]
+    pub simplify: f64,
+    /// Physical size of a cell along each axis.
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
+    /// Where to write the mesh: `.ply`, `.obj` or `.json`.
+    #[arg(long, value_name = "MESH.ply")]
+    pub out: PathBuf,
     /// Where to write the statistics (JSON).
     #[arg(long, value_name = "S.json")]
     pub stats: Option<PathBuf>,
@@ -629,6 +669,101 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
     Ok(())
 }
 
+/// `geodex mesh-domain`.
+pub fn run_domain_mesh(args: &DomainMeshArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let polygons = match &args.polygons {
+        None => None,
+        Some(p) => {
+            let text = std::fs::read(p)
+                .map_err(|e| flag("--polygons", format!("cannot read '{}': {e}", p.display())))?;
+            let mut value: serde_json::Value = serde_json::from_slice(&text)
+                .map_err(|e| flag("--polygons", format!("'{}': {e}", p.display())))?;
+            if value["type"] == "Feature" {
+                value = value["geometry"].take();
+            }
+            let geometry: DomainGeometry = serde_json::from_value(value).map_err(|e| {
+                flag(
+                    "--polygons",
+                    format!(
+                        "'{}' is not a GeoJSON Polygon or MultiPolygon: {e}",
+                        p.display()
+                    ),
+                )
+            })?;
+            Some(geometry)
+        }
+    };
+    let request = DomainMeshRequest {
+        mask: match &args.mask {
+            Some(p) => Some(read("--mask", p, &mut inputs)?),
+            None => None,
+        },
+        polygons,
+        count: args.count,
+        edge_length: args.edge_length,
+        cost: match &args.cost {
+            Some(p) => Some(read("--cost", p, &mut inputs)?),
+            None => None,
+        },
+        min_angle: args.min_angle,
+        smoothing: args.smoothing,
+        simplify: args.simplify,
+        spacing: args.spacing.spacing.clone(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    let Some(mesh) = &out.mesh else {
+        return Err(flag("geodex", "the operation returned no mesh"));
+    };
+    let boundary: Vec<f64> = match array(&out, "boundary") {
+        Some(ArrayData::F64(a)) => a.iter().copied().collect(),
+        _ => Vec::new(),
+    };
+    let props = [mesh_write::VertexProperty::F64("boundary", &boundary)];
+    write_mesh_file(&mesh.mesh.mesh, &props, &args.out)?;
+    if let Some(p) = &args.stats {
+        write_json("--stats", p, &out.document)?;
+    }
+    let stats = &out.document["stats"];
+    println!(
+        "geodex: wrote {} ({} vertices, {} triangles, smallest angle {:.1} deg, {:.1} % >= 25 deg, {:.3} s)",
+        args.out.display(),
+        stats["vertices"],
+        stats["triangles"],
+        stats["min_angle"]["min"].as_f64().unwrap_or(0.0),
+        100.0 * stats["min_angle"]["share_at_least_25"].as_f64().unwrap_or(0.0),
+        secs
+    );
+    Ok(())
+}
+
+/// Writes a mesh as `.ply`, `.obj` or `.json` after `out`'s extension.
+fn write_mesh_file(
+    m: &crate::numerics::mesh::TriMesh,
+    props: &[mesh_write::VertexProperty<'_>],
+    out: &Path,
+) -> Result<(), SegmentCliError> {
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("ply")
+        .to_ascii_lowercase();
+    let bytes = match ext.as_str() {
+        "obj" => mesh_write::write_obj(m),
+        "json" => serde_json::to_vec(&mesh_write::write_json(m, props))
+            .map_err(|e| flag("--out", e.to_string()))?,
+        "ply" => mesh_write::write_ply(m, props),
+        other => {
+            return Err(flag(
+                "--out",
+                format!("unknown mesh extension '.{other}': use .ply, .obj or .json"),
+            ))
+        }
+    };
+    std::fs::write(out, bytes)
+        .map_err(|e| flag("--out", format!("cannot write '{}': {e}", out.display())))
+}
+
 /// `geodex mesh`.
 pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
@@ -653,32 +788,8 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         Some(ArrayData::F64(a)) => a.iter().copied().collect(),
         _ => Vec::new(),
     };
-    let m = &mesh.mesh.mesh;
-    let ext = args
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("ply")
-        .to_ascii_lowercase();
     let props = [mesh_write::VertexProperty::F64("value", &values)];
-    let bytes = match ext.as_str() {
-        "obj" => mesh_write::write_obj(m),
-        "json" => serde_json::to_vec(&mesh_write::write_json(m, &props))
-            .map_err(|e| flag("--out", e.to_string()))?,
-        "ply" => mesh_write::write_ply(m, &props),
-        other => {
-            return Err(flag(
-                "--out",
-                format!("unknown mesh extension '.{other}': use .ply, .obj or .json"),
-            ))
-        }
-    };
-    std::fs::write(&args.out, bytes).map_err(|e| {
-        flag(
-            "--out",
-            format!("cannot write '{}': {e}", args.out.display()),
-        )
-    })?;
+    write_mesh_file(&mesh.mesh.mesh, &props, &args.out)?;
     save(
         &out,
         "approximation",

@@ -9,6 +9,7 @@
 //!   transforms, seeded segmentation, medial axes, offsets and disc-robot planning ([`grid_inputs`]: their shared input checks).
 //! * [`grid_sample`]: `grid.sample`, farthest-point sampling with geodesic Voronoi labels.
 //! * [`grid_mesh`]: `grid.mesh`, image meshing by geodesic Delaunay (a new mesh dataset).
+//! * [`domain_mesh`]: `domain.mesh`, domain meshing of a mask or polygons (a new mesh dataset).
 //! * [`grid_shading`]: `grid.shape_from_shading`, a surface's height from its image (shape from shading).
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
@@ -21,6 +22,7 @@
 //!   analysis: distance matrices, canonical forms, Isomap (shared pieces in
 //!   [`spec::shape`]).
 
+pub mod domain_mesh;
 pub mod grid_distance;
 pub mod grid_edt;
 pub mod grid_mesh;

@@ -58,6 +58,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::grid_plan::GridPlanRequest>(),
     entry::<super::grid_sample::GridSampleRequest>(),
     entry::<super::grid_mesh::GridMeshRequest>(),
+    entry::<super::domain_mesh::DomainMeshRequest>(),
     entry::<super::grid_shading::GridShadingRequest>(),
     entry::<super::grid_tensor_distance::GridTensorDistanceRequest>(),
     entry::<super::grid_tensor_metric::GridTensorMetricRequest>(),

@@ -554,3 +554,118 @@ async fn shape_from_shading_refusals_name_the_field() {
         assert_eq!(v["field"], field, "{body}: {v}");
     }
 }
+
+#[tokio::test]
+async fn domain_mesh_meshes_polygons_and_masks_over_http() {
+    let app = spawn(|_| {}).await;
+    // A square with a square hole as GeoJSON ([x, y] = [column, row]).
+    let square = json!({"type": "Polygon", "coordinates": [
+        [[0, 0], [60, 0], [60, 40], [0, 40], [0, 0]],
+        [[20, 10], [30, 10], [30, 20], [20, 20], [20, 10]]
+    ]});
+    let res = post(
+        &app,
+        "/v1/domain/mesh",
+        json!({"polygons": square, "count": 400}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let stats = &body["stats"];
+    let nv = stats["vertices"].as_u64().expect("vertices") as usize;
+    let nt = stats["triangles"].as_u64().expect("triangles") as usize;
+    assert!(nv.abs_diff(400) <= 20, "{stats}");
+    assert!(
+        (stats["area"].as_f64().expect("area") - 2300.0).abs() < 1e-6,
+        "{stats}"
+    );
+    assert!(
+        stats["min_angle"]["share_at_least_25"]
+            .as_f64()
+            .expect("share")
+            >= 0.99,
+        "{stats}"
+    );
+    assert_eq!(body["triangles"]["shape"], json!([nt, 3]));
+    // Index coordinates: rows (axis 0) up to 40, columns up to 60.
+    let v = npy_f64(&app, &body["vertices"]).await;
+    assert!(v
+        .chunks(2)
+        .all(|p| (-1e-9..=40.0 + 1e-9).contains(&p[0]) && (-1e-9..=60.0 + 1e-9).contains(&p[1])));
+    assert!(v.chunks(2).any(|p| p[1] > 59.0) && v.chunks(2).any(|p| p[0] > 39.0));
+    let url = body["mesh"]["data_url"]
+        .as_str()
+        .expect("mesh url")
+        .to_string();
+    let mesh: serde_json::Value = app
+        .get(&format!("{url}?format=json"))
+        .await
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(mesh["faces"].as_array().expect("faces").len(), nt);
+    assert_eq!(mesh["vertices"].as_array().map(Vec::len), Some(nv));
+    // Boundary flags: 1 on the 2 x (60 + 40) + 4 x 10 cells of boundary, sampled.
+    let flags = npy_f64(&app, &body["boundary"]).await;
+    assert_eq!(flags.len(), nv);
+    let on = flags.iter().filter(|&&f| f == 1.0).count();
+    assert_eq!(
+        on as u64,
+        stats["boundary_vertices"].as_u64().expect("boundary")
+    );
+    assert!(on > 40 && on < nv / 2, "{on}");
+    // A mask: a disc of radius 20 cells.
+    let id = app
+        .upload(&mask(48, |i, j| {
+            (i as f64 - 24.0).hypot(j as f64 - 24.0) < 20.0
+        }))
+        .await;
+    let res = post(
+        &app,
+        "/v1/domain/mesh",
+        json!({"mask": id, "edge_length": 3.0}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let area = body["stats"]["area"].as_f64().expect("area");
+    assert!(
+        (area - std::f64::consts::PI * 400.0).abs() < 0.03 * 1256.0,
+        "{body}"
+    );
+    assert!(geodex::ops::registry::find("domain.mesh").is_some());
+}
+
+#[tokio::test]
+async fn domain_mesh_refuses_bad_domains_naming_the_field() {
+    let app = spawn(|_| {}).await;
+    let empty = app.upload(&mask(8, |_, _| false)).await;
+    // A pentagram (its edges cross) and a multipolygon whose second ring is flat.
+    let bow = json!({"type": "Polygon", "coordinates": [[[10, 0], [-8.09, 5.88], [3.09, -9.51], [3.09, 9.51], [-8.09, -5.88]]]});
+    let flat = json!({"type": "MultiPolygon", "coordinates": [[[[0, 0], [10, 0], [10, 10]]], [[[0, 0], [1, 1], [2, 2]]]]});
+    for (body, field) in [
+        (json!({"count": 100}), "mask"),
+        (json!({"mask": empty, "count": 100}), "mask"),
+        (
+            json!({"polygons": bow, "count": 100}),
+            "polygons.coordinates[0]",
+        ),
+        (
+            json!({"polygons": flat, "count": 100}),
+            "polygons.coordinates[1][0]",
+        ),
+        (json!({"mask": empty}), "count"),
+        (
+            json!({"mask": empty, "count": 10, "edge_length": 1.0}),
+            "edge_length",
+        ),
+        (json!({"mask": empty, "edge_length": 0.0}), "edge_length"),
+        (
+            json!({"mask": empty, "count": 10, "min_angle": 40.0}),
+            "min_angle",
+        ),
+    ] {
+        let v = problem(post(&app, "/v1/domain/mesh", body).await, 422).await;
+        assert_eq!(v["field"], field, "{v}");
+    }
+}

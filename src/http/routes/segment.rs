@@ -17,6 +17,7 @@ use super::grid::DatasetRef;
 use crate::http::extract::ApiJson;
 use crate::http::operation::respond;
 use crate::http::AppState;
+use crate::ops::domain_mesh::DomainMeshRequest;
 use crate::ops::grid_edt::GridEdtRequest;
 use crate::ops::grid_mesh::GridMeshRequest;
 use crate::ops::grid_offset::GridOffsetRequest;
@@ -370,6 +371,64 @@ error of a uniform mesh with the same vertex count.",
 pub async fn mesh(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<GridMeshRequest>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    run(&state, request).await
+}
+
+/// Answer of `POST /v1/domain/mesh`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DomainMeshResponse {
+    /// The mesh (a mesh dataset: vertices in index coordinates with `z = 0`;
+    /// download it as PLY, OBJ or JSON).
+    pub mesh: DatasetRef,
+    /// The vertices (f64, `nv × 2`, index coordinates, axis 0 first).
+    pub vertices: DatasetRef,
+    /// The triangles (int32, `nt × 3`, counter-clockwise in the (axis 0, axis 1) plane).
+    pub triangles: DatasetRef,
+    /// The boundary edges (int32, `nb × 2`, the domain on their left).
+    pub boundary_edges: DatasetRef,
+    /// The smallest angle of each triangle (f64, degrees).
+    pub min_angles: DatasetRef,
+    /// 1 on boundary vertices, 0 inside (f64 per vertex).
+    pub boundary: DatasetRef,
+    /// `vertices`, `triangles`, `boundary_vertices`, `boundary_edges`,
+    /// `refined` (vertices the angle refinement added),
+    /// `refinement_complete`, `edge_length` (the size used), `attempts`
+    /// (meshings made to reach `count`), `area`, `min_angle: {min, median,
+    /// mean, share_at_least_25, share_at_least_30, histogram_5_degrees}`,
+    /// `seconds`.
+    pub stats: serde_json::Value,
+}
+
+/// Domain meshing: a mask or polygons with holes, boundary first.
+#[utoipa::path(
+    post,
+    path = "/v1/domain/mesh",
+    tag = "grid",
+    summary = "Mesh a planar domain (a mask or GeoJSON polygons with holes)",
+    description = "Samples the boundary first (every ring vertex kept, each edge cut into pieces \
+of about `edge_length`, geodesic under `cost`), triangulates it by constrained Delaunay, fills the \
+inside by circumcenter insertion, relaxes the inner vertices by optimal Delaunay smoothing and \
+refines by Ruppert's algorithm until every angle is at least `min_angle` (except at sharper input \
+corners). No triangle lies outside the domain and every boundary edge lies on an input edge. \
+Returns the mesh as a mesh dataset (index coordinates, axis 0 first) and its angle statistics.",
+    request_body = DomainMeshRequest,
+    responses(
+        (status = 200, description = "The domain was meshed.", body = DomainMeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn domain_mesh(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<DomainMeshRequest>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     run(&state, request).await
 }

@@ -3,10 +3,14 @@
 //! cells which vertices are neighbours (the geodesic Delaunay dual of
 //! [`crate::numerics::sampling::delaunay`]).
 //!
+//! * [`domain`]: domain meshing (section 4.5): polygons with holes or a
+//!   mask, boundary first, constrained Delaunay, relaxation and Ruppert
+//!   refinement to an angle bound, under an optional isotropic metric.
 //! * [`image`]: image meshing (section 4.3, Bougleux, Peyré and Cohen): a
 //!   metric from the image, its triangulation, the piecewise-linear
 //!   approximation of the image on it and its L2 error.
 
+pub mod domain;
 pub mod image;
 
 pub use image::{
