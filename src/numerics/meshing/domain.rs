@@ -47,7 +47,7 @@
 
 use std::collections::HashMap;
 
-use spade::handles::FixedVertexHandle;
+use spade::handles::{FixedVertexHandle, InnerTag};
 use spade::{
     AngleLimit, ConstrainedDelaunayTriangulation, Point2, PositionInTriangulation,
     RefinementParameters, Triangulation,
@@ -586,13 +586,19 @@ fn mesh_once(
     }
     // 3: passes of circumcenter insertion (with a uniform size, they only
     // fill what the lattice left between it and the boundary).
-    for _pass in 0..200 {
+    // The vertices whose triangles the next pass looks at (`None`: all
+    // triangles). Every triangle an insertion creates has the new vertex as
+    // a corner, so after the first pass only the stars of the new vertices
+    // and of the triangles whose candidate was crowded out can hold work.
+    let mut work: Option<Vec<usize>> = None;
+    let mut seen: Vec<u32> = Vec::new();
+    for pass in 0..200u32 {
         poll()?;
         let mut candidates: Vec<(f64, [f64; 2], FixedVertexHandle)> = Vec::new();
-        for f in cdt.inner_faces() {
+        let mut consider = |f: spade::handles::FaceHandle<'_, InnerTag, _, _, _, _>| {
             let pos = f.positions();
             if !oracle.face(f.vertices().map(|v| v.fix().index()), &pos) {
-                continue;
+                return;
             }
             let c = f.circumcenter();
             let radius = dist([c.x, c.y], [pos[0].x, pos[0].y]);
@@ -600,7 +606,25 @@ fn mesh_once(
             if radius > BETA * hc {
                 candidates.push((radius / hc, [c.x, c.y], f.vertices()[0].fix()));
             }
+        };
+        match &work {
+            None => cdt.inner_faces().for_each(&mut consider),
+            Some(vertices) => {
+                seen.resize(cdt.num_all_faces(), u32::MAX);
+                for &v in vertices {
+                    for e in cdt.vertex(FixedVertexHandle::from_index(v)).out_edges() {
+                        if let Some(f) = e.face().as_inner() {
+                            let k = f.fix().index();
+                            if seen[k] != pass {
+                                seen[k] = pass;
+                                consider(f);
+                            }
+                        }
+                    }
+                }
+            }
         }
+        let mut next: Vec<usize> = Vec::new();
         candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
         let mut accepted: Vec<[f64; 2]> = Vec::new();
         let cell = h0 * 0.25;
@@ -625,6 +649,7 @@ fn mesh_once(
                 }
             }
             if near {
+                next.push(hint.index());
                 continue;
             }
             grid.entry(key(c)).or_default().push(accepted.len());
@@ -650,9 +675,11 @@ fn mesh_once(
             if let Ok(v) = cdt.insert(Point2::new(p[0], p[1])) {
                 if v.index() == fresh {
                     interior.push(p);
+                    next.push(fresh);
                 }
             }
         }
+        work = Some(next);
     }
     // 4: relaxation sweeps.
     for sweep in 0..options.smoothing {
@@ -679,27 +706,79 @@ fn mesh_once(
                 }
             }
         }
-        let mut moved = interior.clone();
-        for (k, (p, e)) in moved.iter_mut().zip(&sum).enumerate() {
+        // Targets of the vertices that move by more than 2 % of the local
+        // size (inside a lattice the target is the vertex itself).
+        let mut moves: Vec<(usize, [f64; 2])> = Vec::new();
+        for (k, (p, e)) in interior.iter().zip(&sum).enumerate() {
             if e[2] > 0.0 {
                 let q = [e[0] / e[2], e[1] / e[2]];
+                if dist(*p, q) <= 0.02 * h(*p) {
+                    continue;
+                }
                 let v = FixedVertexHandle::from_index(nb + k);
                 if in_star(&cdt, v, q) || admissible(&cdt, &oracle, q, v) {
-                    *p = q;
+                    moves.push((k, q));
                 }
             }
         }
-        let mut all = boundary.clone();
-        all.extend_from_slice(&moved);
-        cdt = build(&all, &edges, &origin)?;
-        if cdt.num_vertices() != all.len() {
-            // Two vertices met: keep the previous positions.
-            let mut all = boundary.clone();
-            all.extend_from_slice(&interior);
-            cdt = build(&all, &edges, &origin)?;
+        if moves.is_empty() {
             break;
         }
-        interior = moved;
+        if moves.len() * 4 > interior.len() {
+            // Many moves: rebuild the triangulation at the new positions.
+            let mut moved = interior.clone();
+            for &(k, q) in &moves {
+                moved[k] = q;
+            }
+            let mut all = boundary.clone();
+            all.extend_from_slice(&moved);
+            let rebuilt = build(&all, &edges, &origin)?;
+            if rebuilt.num_vertices() != all.len() {
+                // Two vertices met: keep the previous positions.
+                break;
+            }
+            cdt = rebuilt;
+            interior = moved;
+        } else {
+            // Few moves (the band along the boundary): remove and reinsert
+            // each. Removal swaps the last vertex into the freed index and
+            // insertion appends, so `slot` follows where each vertex went.
+            let mut slot: Vec<usize> = (0..interior.len()).collect();
+            let mut at: Vec<usize> = (0..interior.len()).collect();
+            for (id, q) in moves {
+                let (k, last) = (slot[id], interior.len() - 1);
+                let old = interior[k];
+                cdt.remove(FixedVertexHandle::from_index(nb + k));
+                interior.swap_remove(k);
+                if k < last {
+                    let other = at[last];
+                    at[k] = other;
+                    slot[other] = k;
+                }
+                let fresh = nb + interior.len();
+                let placed = match cdt.insert(Point2::new(q[0], q[1])) {
+                    Ok(v) if v.index() == fresh => q,
+                    _ => {
+                        // It met a vertex: put it back where it was.
+                        match cdt.insert(Point2::new(old[0], old[1])) {
+                            Ok(v) if v.index() == fresh => old,
+                            _ => {
+                                return Err(DomainError::Size(
+                                    "a relaxed vertex could not be reinserted".into(),
+                                ))
+                            }
+                        }
+                    }
+                };
+                interior.push(placed);
+                if at.len() <= last {
+                    at.push(id);
+                } else {
+                    at[last] = id;
+                }
+                slot[id] = last;
+            }
+        }
     }
     poll()?;
     // 5: quality refinement.
