@@ -334,7 +334,7 @@ pub fn remesh(
         };
         samples.push(next);
         march(mesh, &prep, &[seed], w, f64::INFINITY, &mut field, &inner)?;
-        if samples.len() % 64 == 0 {
+        if samples.len().is_multiple_of(64) {
             control.report(samples.len() as f64 / total_steps);
         }
         match farthest(&field.distance) {
@@ -592,8 +592,8 @@ fn lloyd_step(mesh: &TriMesh, field: &MeshDistance, areas: &[f64], k: usize) -> 
         }
         let p = mesh.position(v as u32);
         let e = &mut acc[l as usize];
-        for j in 0..3 {
-            e.0[j] += areas[v] * p[j];
+        for (s, x) in e.0.iter_mut().zip(p) {
+            *s += areas[v] * x;
         }
         e.1 += areas[v];
     }
