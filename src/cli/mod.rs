@@ -16,6 +16,7 @@ mod run;
 pub mod segment;
 
 pub mod mesh_distance;
+pub mod remesh;
 pub mod shape;
 mod usage;
 
@@ -80,6 +81,8 @@ pub enum Command {
 
     /// Geodesic distance on a triangle mesh file (batch use), written as NPY.
     MeshDistance(mesh_distance::MeshDistanceArgs),
+    /// Remesh a surface: geodesic sampling, Lloyd relaxation, dual of the Voronoi cells.
+    Remesh(remesh::RemeshArgs),
     /// Geodesic distance matrix of a mesh file (all pairs or landmark rows), written as NPY.
     DistanceMatrix(shape::DistanceMatrixArgs),
     /// Bending-invariant canonical form of a mesh file (MDS of its geodesic distances), written as PLY.
@@ -104,6 +107,7 @@ pub fn main() -> ExitCode {
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),
+        Some(Command::Remesh(args)) => remesh::run(&args).map_err(anyhow::Error::msg),
         Some(Command::DistanceMatrix(args)) => {
             shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)
         }

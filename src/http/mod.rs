@@ -95,6 +95,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::mesh::voronoi))
         .routes(routes!(routes::mesh::paths))
         .routes(routes!(routes::mesh::sample))
+        .routes(routes!(routes::mesh::remesh))
         .routes(routes!(routes::mesh::distance_matrix))
         .routes(routes!(routes::mesh::embed))
         .routes(routes!(routes::points::isomap))

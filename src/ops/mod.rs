@@ -18,6 +18,7 @@
 //! * [`tensor_spec`]: the `tensor` section shared by both.
 //! * [`mesh_distance`], [`mesh_voronoi`], [`mesh_paths`], [`mesh_sample`]:
 //!   geodesics on triangle meshes (shared pieces in [`mesh_common`]).
+//! * [`mesh_remesh`]: `mesh.remesh`, surface remeshing (a new mesh dataset).
 //! * [`mesh_distance_matrix`], [`mesh_embed`], [`points_isomap`]: shape
 //!   analysis: distance matrices, canonical forms, Isomap (shared pieces in
 //!   [`spec::shape`]).
@@ -40,6 +41,7 @@ pub mod mesh_distance;
 pub mod mesh_distance_matrix;
 pub mod mesh_embed;
 pub mod mesh_paths;
+pub mod mesh_remesh;
 pub mod mesh_sample;
 pub mod mesh_voronoi;
 pub mod parse;

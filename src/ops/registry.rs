@@ -66,6 +66,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::mesh_voronoi::MeshVoronoiRequest>(),
     entry::<super::mesh_paths::MeshPathsRequest>(),
     entry::<super::mesh_sample::MeshSampleRequest>(),
+    entry::<super::mesh_remesh::MeshRemeshRequest>(),
     entry::<super::mesh_distance_matrix::MeshDistanceMatrixRequest>(),
     entry::<super::mesh_embed::MeshEmbedRequest>(),
     entry::<super::points_isomap::PointsIsomapRequest>(),

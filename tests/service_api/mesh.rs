@@ -247,3 +247,39 @@ async fn mesh_errors_name_the_field() {
     let res = app.get(&format!("/v1/datasets/{id}/data?format=npy")).await;
     problem(res, 406).await;
 }
+
+/// `mesh.remesh` through the real server: a valid mesh of the sphere's
+/// topology, non-increasing Lloyd energies, and a too-large count refused
+/// as a 422 naming `count`.
+#[tokio::test]
+async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
+    let app = spawn(|_| {}).await;
+    let sphere = icosphere(4, 1.0);
+    let meta = upload_mesh(&app, write_obj(&sphere), "model/obj", "").await;
+    let id = meta["id"].as_str().unwrap();
+    let res = post(&app, "/v1/mesh/remesh", json!({"mesh": id, "count": 400})).await;
+    assert_eq!(res.status(), 200);
+    let v: serde_json::Value = res.json().await.unwrap();
+    let stats = &v["stats"];
+    assert_eq!(stats["valid"], true, "{stats}");
+    assert_eq!(stats["topology_kept"], true, "{stats}");
+    assert_eq!(stats["output_topology"]["genus"], 0, "{stats}");
+    let e: Vec<f64> = stats["lloyd_energies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(e.windows(2).all(|w| w[1] <= w[0]), "{e:?}");
+    assert!(
+        stats["hausdorff_relative"].as_f64().unwrap() < 0.02,
+        "{stats}"
+    );
+    assert!(v["remeshed"]["id"].is_string(), "{v}");
+    let p = problem(
+        post(&app, "/v1/mesh/remesh", json!({"mesh": id, "count": 5000})).await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("count"), "{p}");
+}

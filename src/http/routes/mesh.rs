@@ -21,6 +21,7 @@ use crate::http::AppState;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::MeshEmbedRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
+use crate::ops::mesh_remesh::MeshRemeshRequest;
 use crate::ops::mesh_sample::MeshSampleRequest;
 use crate::ops::mesh_voronoi::MeshVoronoiRequest;
 use crate::ops::spec::mesh::MeshDistanceRequest;
@@ -175,6 +176,62 @@ pub async fn sample(
     ApiJson(request): ApiJson<MeshSampleRequest>,
 ) -> Result<Json<MeshResponse>, ApiError> {
     run_mesh_op(&state, request).await
+}
+
+/// Answer of `POST /v1/mesh/remesh`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RemeshResponse {
+    /// The new mesh (a mesh dataset: download it as PLY, OBJ or JSON).
+    pub remeshed: DatasetRef,
+    /// The vertices (f64, `nv × 3`).
+    pub vertices: DatasetRef,
+    /// The triangles (int32, `nt × 3`, oriented like the input).
+    pub triangles: DatasetRef,
+    /// The input vertex of each output vertex (int32).
+    pub samples: DatasetRef,
+    /// `vertices`, `triangles`, `target_count`, `added` (samples the dual
+    /// repair added), `repair_rounds`, `lloyd_energies` (the energy
+    /// `Σ A_v d²` after sampling and after each accepted Lloyd iteration,
+    /// non-increasing), `valid`, `flipped`, `topology_kept` and
+    /// `topology_note`, `input_topology` and `output_topology` (components,
+    /// boundary loops, Euler characteristic, genus), `hausdorff` and
+    /// `hausdorff_relative` (over the bounding-box diagonal), `seconds`.
+    pub stats: serde_json::Value,
+}
+
+/// `POST /v1/mesh/remesh`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/remesh",
+    tag = "mesh",
+    summary = "Remesh a surface: geodesic sampling, Lloyd relaxation, dual of the Voronoi cells",
+    description = "Places `count` vertices (or as many as `edge_length` asks) on the mesh by \
+farthest-point sampling under a uniform or curvature-adapted metric, relaxes them by geodesic \
+Lloyd iterations (each kept only if the energy decreases; the energies are returned), and \
+triangulates them by the dual of their geodesic Voronoi cells, repaired (samples added and \
+counted) until it is a manifold with the input's topology. Says whether the components, boundary \
+loops and genus were kept, and the Hausdorff distance to the input. Runs as a job with progress \
+through `POST /v1/jobs`.",
+    request_body(content((MeshRemeshRequest = "application/json"))),
+    responses(
+        (status = 200, description = "The surface was remeshed.", body = RemeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn remesh(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshRemeshRequest>,
+) -> Result<Json<Value>, ApiError> {
+    let doc = respond(&state, Box::new(request), Instant::now()).await?;
+    Ok(Json(Value::Object(doc)))
 }
 
 /// Answer of `POST /v1/mesh/distance-matrix`.

@@ -173,6 +173,32 @@ fn tube_unchecked(section: &[[f64; 2]], rings: usize, height: f64) -> TriMesh {
     TriMesh::from_parts_unchecked(pos, faces)
 }
 
+/// The torus of major radius `major` and minor radius `minor` (axis z),
+/// `rings × sides` vertices, quads split in two, outward orientation: the
+/// point of angles `(θ, φ)` is `((R + r cos φ) cos θ, (R + r cos φ) sin θ,
+/// r sin φ)`; genus 1, Euler characteristic 0.
+pub fn torus(rings: usize, sides: usize, major: f64, minor: f64) -> TriMesh {
+    let (rings, sides) = (rings.max(3), sides.max(3));
+    let mut pos = Vec::with_capacity(rings * sides);
+    for i in 0..rings {
+        let t = std::f64::consts::TAU * i as f64 / rings as f64;
+        for j in 0..sides {
+            let p = std::f64::consts::TAU * j as f64 / sides as f64;
+            let rho = major + minor * p.cos();
+            pos.push([rho * t.cos(), rho * t.sin(), minor * p.sin()]);
+        }
+    }
+    let id = |i: usize, j: usize| ((i % rings) * sides + j % sides) as u32;
+    let mut faces = Vec::with_capacity(2 * rings * sides);
+    for i in 0..rings {
+        for j in 0..sides {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::from_parts_unchecked(pos, faces)
+}
+
 /// Great-circle distance between two points of the sphere of radius `r`
 /// centred at the origin: `r · atan2(|p × q|, p · q)`.
 pub fn great_circle(p: [f64; 3], q: [f64; 3], r: f64) -> f64 {

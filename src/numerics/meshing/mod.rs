@@ -9,9 +9,12 @@
 //! * [`image`]: image meshing (section 4.3, Bougleux, Peyré and Cohen): a
 //!   metric from the image, its triangulation, the piecewise-linear
 //!   approximation of the image on it and its L2 error.
+//! * [`surface`]: surface remeshing (sections 4.4 and 4.6): geodesic
+//!   sampling, geodesic Lloyd relaxation and the dual of the Voronoi cells.
 
 pub mod domain;
 pub mod image;
+pub mod surface;
 
 pub use image::{
     mesh_image, piecewise_linear, ImageMesh, ImageMeshOptions, ImageMetric, MeshingError,

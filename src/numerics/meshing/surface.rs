@@ -1,0 +1,1048 @@
+//! Surface remeshing (the monograph's sections 4.4 and 4.6): a new triangle
+//! mesh of a surface from geodesic sampling, geodesic Lloyd relaxation and
+//! the dual of the geodesic Voronoi cells.
+//!
+//! # Math
+//!
+//! **Metric.** Distances are weighted geodesic distances `d_W` on the input
+//! mesh (fast marching, `|∇_S d| = W`). Farthest-point sampling makes the
+//! covering radius uniform in `d_W`, so the Euclidean size of a cell is
+//! `∝ 1/W`:
+//!
+//! ```text
+//! W = 1                                (uniform)
+//! W = 1 + λ · κ / mean(κ)              (curvature-adapted, λ >= 0)
+//! ```
+//!
+//! where `κ(v) = max_u |2 n_v · (p_u − p_v)| / |p_u − p_v|²` is the largest
+//! normal curvature along the edges of `v` (`n_v` the area-weighted vertex
+//! normal), averaged once over the one-ring.
+//!
+//! **Lloyd (centroidal relaxation).** With `V_i` the geodesic Voronoi cell of
+//! sample `s_i` and `A_v` the lumped area of vertex `v` (a third of the
+//! areas of its faces), the energy is
+//!
+//! ```text
+//! E = Σ_v A_v · d_W(v, S)²
+//! ```
+//!
+//! One iteration moves every sample to the vertex of its cell nearest to the
+//! cell's area-weighted centroid `g_i = Σ_{v∈V_i} A_v p_v / Σ_{v∈V_i} A_v`
+//! (the centroid projected back onto the surface, restricted to the cell's
+//! vertices), recomputes the cells (one multi-source march) and keeps the
+//! move only if `E` did not increase; otherwise the iterations stop on the
+//! previous sampling. The reported energies are therefore non-increasing.
+//!
+//! **Dual triangulation.** Every input face whose three vertices lie in
+//! three different cells `(a, b, c)` gives the triangle `(a, b, c)`, in the
+//! face's vertex order (so the orientation is the input's); duplicates are
+//! dropped. The result is checked: every edge in at most two triangles and
+//! traversed in opposite directions, every vertex's triangles one fan (one
+//! cycle inside, one path on a boundary), every cell used, no triangle whose
+//! normal opposes the input face it came from. The cells involved in a
+//! failure get a new sample at their farthest vertex (a local march) and the
+//! dual is rebuilt, at most `max_repairs` rounds. Then the Euler
+//! characteristic `χ = V − E + F`, the components and the boundary loops
+//! are compared with the input's: when all three agree (and each component
+//! is orientable) the genus `g = (2c − χ − b)/2` agrees too.
+//!
+//! **Hausdorff distance.** [`hausdorff_distance`] samples each mesh at its
+//! vertices, edge midpoints and face centroids and takes the largest
+//! point-to-triangle distance to the other mesh (uniform grid of triangles),
+//! in both directions.
+
+use std::collections::HashMap;
+
+use crate::numerics::control::Control;
+use crate::numerics::mesh::fast_marching::{march, MarchPrep};
+use crate::numerics::mesh::sources::Seed;
+use crate::numerics::mesh::{
+    cross, dot, norm, sub, MeshDistance, MeshSolveError, Topology, TriMesh,
+};
+
+/// How the vertex density follows the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Adaptation {
+    /// `W = 1`: cells of equal geodesic size.
+    Uniform,
+    /// `W = 1 + λ κ / mean κ`: smaller cells where the surface bends.
+    Curvature {
+        /// `λ >= 0`.
+        strength: f64,
+    },
+}
+
+/// Options of [`remesh`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RemeshOptions {
+    /// Target number of vertices (before repairs), `>= 4` and at most the
+    /// input's vertex count.
+    pub count: usize,
+    /// Density.
+    pub adaptation: Adaptation,
+    /// Geodesic Lloyd iterations (0 keeps the farthest-point sampling).
+    pub lloyd_iterations: usize,
+    /// Rounds of dual repair (each adds samples to the offending cells).
+    pub max_repairs: usize,
+}
+
+impl Default for RemeshOptions {
+    fn default() -> Self {
+        Self {
+            count: 1000,
+            adaptation: Adaptation::Uniform,
+            lloyd_iterations: 5,
+            max_repairs: 8,
+        }
+    }
+}
+
+/// Combinatorial topology of a triangle mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TopologySummary {
+    /// Vertices used by at least one face.
+    pub vertices: usize,
+    /// Edges.
+    pub edges: usize,
+    /// Faces.
+    pub faces: usize,
+    /// Connected components (of the used vertices).
+    pub components: usize,
+    /// Closed loops of boundary edges.
+    pub boundary_loops: usize,
+    /// `χ = V − E + F`.
+    pub euler: i64,
+    /// Total genus `(2c − χ − b) / 2` when the mesh is an oriented manifold.
+    pub genus: Option<i64>,
+    /// Edges with more than two faces.
+    pub non_manifold_edges: usize,
+    /// Edges whose two faces traverse them in the same direction.
+    pub misoriented_edges: usize,
+}
+
+impl TopologySummary {
+    /// Counts of `mesh`.
+    pub fn of(mesh: &TriMesh) -> Self {
+        let topo = Topology::new(mesh);
+        let nf = mesh.num_faces();
+        let mut used = vec![false; mesh.num_vertices()];
+        for f in mesh.faces() {
+            for &v in f {
+                used[v as usize] = true;
+            }
+        }
+        let vertices = used.iter().filter(|&&u| u).count();
+        let mut comps: Vec<u32> = (0..mesh.num_vertices())
+            .filter(|&v| used[v])
+            .map(|v| topo.component[v])
+            .collect();
+        comps.sort_unstable();
+        comps.dedup();
+        // Interior edges appear twice among the half-edges, boundary ones once.
+        let interior = topo.opposite.iter().filter(|&&h| h != NONE).count() / 2;
+        let edges = interior + topo.boundary_edges + topo.non_manifold_edges;
+        let boundary_loops = boundary_loops(mesh, &topo);
+        let euler = vertices as i64 - edges as i64 + nf as i64;
+        let manifold = topo.non_manifold_edges == 0 && topo.misoriented_edges == 0;
+        let twice = 2 * comps.len() as i64 - euler - boundary_loops as i64;
+        let genus = (manifold && twice >= 0 && twice % 2 == 0).then_some(twice / 2);
+        Self {
+            vertices,
+            edges,
+            faces: nf,
+            components: comps.len(),
+            boundary_loops,
+            euler,
+            genus,
+            non_manifold_edges: topo.non_manifold_edges,
+            misoriented_edges: topo.misoriented_edges,
+        }
+    }
+
+    /// Same components, boundary loops and Euler characteristic (hence the
+    /// same genus on an oriented manifold).
+    pub fn same_topology(&self, other: &Self) -> bool {
+        self.components == other.components
+            && self.boundary_loops == other.boundary_loops
+            && self.euler == other.euler
+            && self.genus == other.genus
+    }
+}
+
+const NONE: u32 = u32::MAX;
+
+/// Number of cycles formed by the boundary half-edges (each boundary vertex
+/// of a manifold has one outgoing boundary half-edge per boundary pass).
+fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> usize {
+    let mut next: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut edges = Vec::new();
+    for (f, face) in mesh.faces().iter().enumerate() {
+        for k in 0..3 {
+            if topo.opposite[3 * f + k] == NONE {
+                let (a, b) = (face[k], face[(k + 1) % 3]);
+                next.entry(a).or_default().push(b);
+                edges.push((a, b));
+            }
+        }
+    }
+    // Union-find over the boundary vertices: a loop is a connected set.
+    let mut id: HashMap<u32, usize> = HashMap::new();
+    for &(a, b) in &edges {
+        let n = id.len();
+        id.entry(a).or_insert(n);
+        let n = id.len();
+        id.entry(b).or_insert(n);
+    }
+    let mut parent: Vec<usize> = (0..id.len()).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    for &(a, b) in &edges {
+        let (ra, rb) = (find(&mut parent, id[&a]), find(&mut parent, id[&b]));
+        if ra != rb {
+            parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    (0..parent.len())
+        .filter(|&i| find(&mut parent, i) == i)
+        .count()
+}
+
+/// Errors of [`remesh`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RemeshError {
+    /// An option is out of range.
+    #[error("{option}: {reason}")]
+    InvalidOption {
+        /// The option.
+        option: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The input is not a manifold triangle mesh.
+    #[error("the input mesh is not manifold: {non_manifold_edges} edges in more than two faces, {misoriented_edges} edges with inconsistent orientation")]
+    NonManifold {
+        /// Edges in more than two faces.
+        non_manifold_edges: usize,
+        /// Edges traversed twice in the same direction.
+        misoriented_edges: usize,
+    },
+    /// The caller raised the cancel flag.
+    #[error("cancelled")]
+    Cancelled,
+    /// A distance solve failed.
+    #[error(transparent)]
+    Solve(#[from] MeshSolveError),
+}
+
+/// The new mesh and how it was made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Remesh {
+    /// The new mesh: vertices at the samples (input vertices), faces
+    /// oriented like the input.
+    pub mesh: TriMesh,
+    /// Input vertex of each output vertex.
+    pub samples: Vec<u32>,
+    /// Lloyd energy `Σ A_v d²` after the sampling and after each accepted
+    /// iteration (non-increasing).
+    pub energies: Vec<f64>,
+    /// Lloyd iterations accepted.
+    pub lloyd_accepted: usize,
+    /// Samples added by the repairs of the dual.
+    pub added: usize,
+    /// Repair rounds run.
+    pub repair_rounds: usize,
+    /// Topology of the input.
+    pub input_topology: TopologySummary,
+    /// Topology of the output.
+    pub output_topology: TopologySummary,
+    /// The output is a manifold with consistent orientation, every vertex
+    /// link a single fan, no triangle flipped against the input.
+    pub valid: bool,
+    /// Components, boundary loops, Euler characteristic and genus agree.
+    pub topology_kept: bool,
+    /// Output triangles whose normal opposes their input face's.
+    pub flipped: usize,
+}
+
+/// Remeshes `mesh`; see the module docs.
+pub fn remesh(
+    mesh: &TriMesh,
+    options: &RemeshOptions,
+    control: &Control<'_>,
+) -> Result<Remesh, RemeshError> {
+    let n = mesh.num_vertices();
+    let topo = Topology::new(mesh);
+    if topo.non_manifold_edges > 0 || topo.misoriented_edges > 0 {
+        return Err(RemeshError::NonManifold {
+            non_manifold_edges: topo.non_manifold_edges,
+            misoriented_edges: topo.misoriented_edges,
+        });
+    }
+    if options.count < 4 {
+        return Err(RemeshError::InvalidOption {
+            option: "count",
+            reason: "must be >= 4".into(),
+        });
+    }
+    if options.count > n {
+        return Err(RemeshError::InvalidOption {
+            option: "count",
+            reason: format!(
+                "must be at most the input's vertex count ({n}), got {}",
+                options.count
+            ),
+        });
+    }
+    let weights = match options.adaptation {
+        Adaptation::Uniform => None,
+        Adaptation::Curvature { strength } => {
+            if !(strength.is_finite() && strength >= 0.0) {
+                return Err(RemeshError::InvalidOption {
+                    option: "strength",
+                    reason: "must be finite and >= 0".into(),
+                });
+            }
+            Some(curvature_weights(mesh, &topo, strength))
+        }
+    };
+    let w = weights.as_deref();
+    let prep = MarchPrep::new(mesh, &topo);
+    let areas = vertex_areas(mesh);
+    let inner = control.cancel_only();
+    let total_steps = (options.count + options.lloyd_iterations * options.count / 4 + 1) as f64;
+
+    // 1. Farthest-point sampling with local fronts.
+    let mut field = MeshDistance {
+        distance: vec![f64::INFINITY; n],
+        labels: vec![-1; n],
+    };
+    let mut samples: Vec<u32> = Vec::with_capacity(options.count);
+    let mut next = farthest(&field.distance).unwrap_or(0);
+    while samples.len() < options.count {
+        if control.is_cancelled() {
+            return Err(RemeshError::Cancelled);
+        }
+        let seed = Seed {
+            vertex: next,
+            distance: 0.0,
+            label: samples.len() as i32,
+        };
+        samples.push(next);
+        march(mesh, &prep, &[seed], w, f64::INFINITY, &mut field, &inner)?;
+        if samples.len().is_multiple_of(64) {
+            control.report(samples.len() as f64 / total_steps);
+        }
+        match farthest(&field.distance) {
+            Some(v) if field.distance[v as usize] > 0.0 => next = v,
+            _ => break,
+        }
+    }
+
+    // 2. Geodesic Lloyd iterations, each kept only if the energy decreased.
+    let mut energies = vec![energy(&field, &areas)];
+    let mut lloyd_accepted = 0;
+    for it in 0..options.lloyd_iterations {
+        if control.is_cancelled() {
+            return Err(RemeshError::Cancelled);
+        }
+        let moved = lloyd_step(mesh, &field, &areas, samples.len());
+        let trial = voronoi(mesh, &prep, &moved, w, &inner)?;
+        let e = energy(&trial, &areas);
+        control.report((options.count + (it + 1) * options.count / 4) as f64 / total_steps);
+        if e.is_finite() && e <= energies[energies.len() - 1] {
+            let changed = moved != samples;
+            samples = moved;
+            field = trial;
+            energies.push(e);
+            lloyd_accepted += 1;
+            if !changed {
+                break;
+            }
+        } else {
+            break;
+        }
+    }
+
+    // 3. Dual triangulation with repairs.
+    let input_topology = TopologySummary::of(mesh);
+    let face_normals: Vec<[f64; 3]> = (0..mesh.num_faces())
+        .map(|f| face_normal(mesh, mesh.faces()[f]))
+        .collect();
+    let mut added = 0;
+    let mut repair_rounds = 0;
+    loop {
+        if control.is_cancelled() {
+            return Err(RemeshError::Cancelled);
+        }
+        let dual = dual_triangulation(mesh, &field.labels, &samples, &face_normals);
+        let out_topology = TopologySummary::of(&dual.mesh);
+        let valid = dual.bad.is_empty();
+        let kept = valid && out_topology.same_topology(&input_topology);
+        if kept || repair_rounds >= options.max_repairs {
+            control.report(1.0);
+            return Ok(Remesh {
+                mesh: dual.mesh,
+                samples,
+                energies,
+                lloyd_accepted,
+                added,
+                repair_rounds,
+                input_topology,
+                output_topology: out_topology,
+                valid,
+                topology_kept: kept,
+                flipped: dual.flipped,
+            });
+        }
+        repair_rounds += 1;
+        // The cells at fault; if none is (a valid dual of the wrong topology:
+        // too coarse a sampling), the largest cells (by geodesic radius).
+        let mut bad = dual.bad;
+        if bad.is_empty() {
+            let radius = cell_radius(&field, samples.len());
+            let mut order: Vec<usize> = (0..samples.len()).collect();
+            order.sort_by(|&a, &b| radius[b].1.total_cmp(&radius[a].1));
+            bad = order
+                .into_iter()
+                .take((samples.len() / 50).max(1))
+                .collect();
+        }
+        let radius = cell_radius(&field, samples.len());
+        let mut seeds = Vec::new();
+        bad.sort_unstable();
+        bad.dedup();
+        for c in bad {
+            let (v, d) = radius[c];
+            if d > 0.0 && v != NONE {
+                seeds.push(Seed {
+                    vertex: v,
+                    distance: 0.0,
+                    label: samples.len() as i32,
+                });
+                samples.push(v);
+            }
+        }
+        if seeds.is_empty() {
+            repair_rounds = options.max_repairs;
+            continue;
+        }
+        added += seeds.len();
+        march(mesh, &prep, &seeds, w, f64::INFINITY, &mut field, &inner)?;
+    }
+}
+
+/// The dual of the Voronoi labels and the cells at fault.
+struct Dual {
+    mesh: TriMesh,
+    /// Labels (indices into the samples) involved in a failure.
+    bad: Vec<usize>,
+    flipped: usize,
+}
+
+fn dual_triangulation(
+    mesh: &TriMesh,
+    labels: &[i32],
+    samples: &[u32],
+    face_normals: &[[f64; 3]],
+) -> Dual {
+    let k = samples.len();
+    let positions: Vec<[f64; 3]> = samples.iter().map(|&s| mesh.position(s)).collect();
+    let mut seen: HashMap<[u32; 3], ()> = HashMap::new();
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    let mut bad = Vec::new();
+    let mut flipped = 0;
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let l = face.map(|v| labels[v as usize]);
+        if l.iter().any(|&x| x < 0) || l[0] == l[1] || l[1] == l[2] || l[0] == l[2] {
+            continue;
+        }
+        let t = l.map(|x| x as u32);
+        let mut key = t;
+        key.sort_unstable();
+        if seen.insert(key, ()).is_some() {
+            continue;
+        }
+        let nt = cross(
+            sub(positions[t[1] as usize], positions[t[0] as usize]),
+            sub(positions[t[2] as usize], positions[t[0] as usize]),
+        );
+        if dot(nt, face_normals[f]) <= 0.0 {
+            flipped += 1;
+            bad.extend(t.iter().map(|&x| x as usize));
+        }
+        faces.push(t);
+    }
+    let out = TriMesh::from_parts_unchecked(positions, faces);
+    // Vertex links: the edges opposite each vertex must chain into one fan.
+    let mut link: Vec<Vec<(u32, u32)>> = vec![Vec::new(); k];
+    for f in out.faces() {
+        for j in 0..3 {
+            link[f[j] as usize].push((f[(j + 1) % 3], f[(j + 2) % 3]));
+        }
+    }
+    for (v, edges) in link.iter().enumerate() {
+        if !single_fan(edges) {
+            bad.push(v);
+            bad.extend(edges.iter().flat_map(|&(a, b)| [a as usize, b as usize]));
+        }
+    }
+    Dual {
+        mesh: out,
+        bad,
+        flipped,
+    }
+}
+
+/// Whether the link edges `(a → b)` of a vertex form one cycle or one path
+/// visiting each link vertex once (an empty link is a vertex in no triangle).
+fn single_fan(edges: &[(u32, u32)]) -> bool {
+    if edges.is_empty() {
+        return false;
+    }
+    let mut next: HashMap<u32, u32> = HashMap::with_capacity(edges.len());
+    let mut has_pred: HashMap<u32, bool> = HashMap::with_capacity(edges.len() + 1);
+    for &(a, b) in edges {
+        if next.insert(a, b).is_some() {
+            return false;
+        }
+        if has_pred.insert(b, true) == Some(true) {
+            return false;
+        }
+        has_pred.entry(a).or_insert(false);
+    }
+    let starts: Vec<u32> = has_pred
+        .iter()
+        .filter(|(_, &p)| !p)
+        .map(|(&v, _)| v)
+        .collect();
+    let start = match starts.len() {
+        0 => edges[0].0,
+        1 => starts[0],
+        _ => return false,
+    };
+    let mut cur = start;
+    let mut steps = 0;
+    while let Some(&b) = next.get(&cur) {
+        steps += 1;
+        cur = b;
+        if cur == start || steps > edges.len() {
+            break;
+        }
+    }
+    steps == edges.len()
+}
+
+/// The farthest vertex of each cell and its distance (`NONE` for an empty cell).
+fn cell_radius(field: &MeshDistance, k: usize) -> Vec<(u32, f64)> {
+    let mut out = vec![(NONE, -1.0); k];
+    for (v, (&l, &d)) in field.labels.iter().zip(&field.distance).enumerate() {
+        if l >= 0 && (l as usize) < k && d.is_finite() && d > out[l as usize].1 {
+            out[l as usize] = (v as u32, d);
+        }
+    }
+    out
+}
+
+/// The vertex with the largest distance (`+inf` first: unreached components).
+fn farthest(d: &[f64]) -> Option<u32> {
+    let mut best: Option<(u32, f64)> = None;
+    for (v, &x) in d.iter().enumerate() {
+        if !x.is_nan() && best.is_none_or(|b| x > b.1) {
+            best = Some((v as u32, x));
+        }
+    }
+    best.map(|b| b.0)
+}
+
+/// Lumped vertex areas: a third of the areas of the incident faces.
+fn vertex_areas(mesh: &TriMesh) -> Vec<f64> {
+    let mut a = vec![0.0; mesh.num_vertices()];
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let third = mesh.face_area(f) / 3.0;
+        for &v in face {
+            a[v as usize] += third;
+        }
+    }
+    a
+}
+
+/// `Σ_v A_v d(v)²` over the reached vertices.
+fn energy(field: &MeshDistance, areas: &[f64]) -> f64 {
+    field
+        .distance
+        .iter()
+        .zip(areas)
+        .filter(|(d, _)| d.is_finite())
+        .map(|(d, a)| a * d * d)
+        .sum()
+}
+
+/// One Lloyd move: each sample to the vertex of its cell nearest to the
+/// cell's area-weighted centroid.
+fn lloyd_step(mesh: &TriMesh, field: &MeshDistance, areas: &[f64], k: usize) -> Vec<u32> {
+    let mut acc = vec![([0.0f64; 3], 0.0f64); k];
+    for (v, &l) in field.labels.iter().enumerate() {
+        if l < 0 {
+            continue;
+        }
+        let p = mesh.position(v as u32);
+        let e = &mut acc[l as usize];
+        for (s, x) in e.0.iter_mut().zip(p) {
+            *s += areas[v] * x;
+        }
+        e.1 += areas[v];
+    }
+    let centroids: Vec<[f64; 3]> = acc
+        .iter()
+        .map(|(s, a)| if *a > 0.0 { s.map(|x| x / a) } else { *s })
+        .collect();
+    let mut best = vec![(NONE, f64::INFINITY); k];
+    for (v, &l) in field.labels.iter().enumerate() {
+        if l < 0 {
+            continue;
+        }
+        let d = norm(sub(mesh.position(v as u32), centroids[l as usize]));
+        if d < best[l as usize].1 {
+            best[l as usize] = (v as u32, d);
+        }
+    }
+    best.iter().map(|b| b.0).collect()
+}
+
+/// The Voronoi cells of `samples` (labels index `samples`).
+fn voronoi(
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    samples: &[u32],
+    w: Option<&[f64]>,
+    control: &Control<'_>,
+) -> Result<MeshDistance, MeshSolveError> {
+    let n = mesh.num_vertices();
+    let mut field = MeshDistance {
+        distance: vec![f64::INFINITY; n],
+        labels: vec![-1; n],
+    };
+    let seeds: Vec<Seed> = samples
+        .iter()
+        .enumerate()
+        .filter(|(_, &s)| s != NONE)
+        .map(|(i, &s)| Seed {
+            vertex: s,
+            distance: 0.0,
+            label: i as i32,
+        })
+        .collect();
+    march(mesh, prep, &seeds, w, f64::INFINITY, &mut field, control)?;
+    Ok(field)
+}
+
+/// Unnormalised normal `(b − a) × (c − a)` of a face.
+fn face_normal(mesh: &TriMesh, f: [u32; 3]) -> [f64; 3] {
+    let a = mesh.position(f[0]);
+    cross(sub(mesh.position(f[1]), a), sub(mesh.position(f[2]), a))
+}
+
+/// `W = 1 + λ κ / mean κ` (see the module docs).
+fn curvature_weights(mesh: &TriMesh, topo: &Topology, strength: f64) -> Vec<f64> {
+    let n = mesh.num_vertices();
+    let mut normals = vec![[0.0f64; 3]; n];
+    for face in mesh.faces() {
+        let nf = face_normal(mesh, *face);
+        for &v in face {
+            for j in 0..3 {
+                normals[v as usize][j] += nf[j];
+            }
+        }
+    }
+    let mut kappa = vec![0.0f64; n];
+    for face in mesh.faces() {
+        for j in 0..3 {
+            let (v, u) = (face[j] as usize, face[(j + 1) % 3] as usize);
+            let e = sub(mesh.position(u as u32), mesh.position(v as u32));
+            let l2 = dot(e, e);
+            for (a, b) in [(v, e), (u, e.map(|x| -x))] {
+                let nn = norm(normals[a]);
+                if l2 > 0.0 && nn > 0.0 {
+                    let k = (2.0 * dot(normals[a], b) / nn).abs() / l2;
+                    kappa[a] = kappa[a].max(k);
+                }
+            }
+        }
+    }
+    // One pass of one-ring averaging (through the faces of each vertex).
+    let smooth: Vec<f64> = (0..n)
+        .map(|v| {
+            let fs = topo.faces_of(v as u32);
+            let (mut s, mut c) = (kappa[v], 1.0);
+            for &f in fs {
+                for &u in &mesh.faces()[f as usize] {
+                    s += kappa[u as usize];
+                    c += 1.0;
+                }
+            }
+            s / c
+        })
+        .collect();
+    let mean = smooth.iter().sum::<f64>() / n.max(1) as f64;
+    smooth
+        .iter()
+        .map(|&k| {
+            if mean > 0.0 {
+                1.0 + strength * k / mean
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// Distance from `p` to the triangle `(a, b, c)`: the distance to its plane
+/// when the projection falls inside (barycentric coordinates all `>= 0`),
+/// else the distance to the nearest of its three edges (segments).
+pub fn point_triangle_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let (e0, e1) = (sub(b, a), sub(c, a));
+    let nrm = cross(e0, e1);
+    let n2 = dot(nrm, nrm);
+    if n2 > 0.0 {
+        let ap = sub(p, a);
+        // Barycentric coordinates of the projection: u along e0, v along e1.
+        let u = dot(cross(ap, e1), nrm) / n2;
+        let v = dot(cross(e0, ap), nrm) / n2;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 {
+            return (dot(ap, nrm) / n2.sqrt()).abs();
+        }
+    }
+    segment_distance(p, a, b)
+        .min(segment_distance(p, b, c))
+        .min(segment_distance(p, c, a))
+}
+
+/// Distance from `p` to the segment `[a, b]`: to `a + t (b − a)` with
+/// `t = clamp((p − a)·(b − a) / |b − a|², 0, 1)`.
+fn segment_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let e = sub(b, a);
+    let l2 = dot(e, e);
+    let t = if l2 > 0.0 {
+        (dot(sub(p, a), e) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    norm(sub(p, [a[0] + t * e[0], a[1] + t * e[1], a[2] + t * e[2]]))
+}
+
+/// A uniform grid of a mesh's triangles for nearest-triangle queries.
+struct TriangleGrid<'m> {
+    mesh: &'m TriMesh,
+    origin: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    offsets: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl<'m> TriangleGrid<'m> {
+    fn new(mesh: &'m TriMesh) -> Self {
+        let (lo, hi) = bounds(mesh.positions());
+        let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        let diag = norm(ext).max(f64::MIN_POSITIVE);
+        let nf = mesh.num_faces().max(1);
+        // About one triangle per cell on a surface, at most ~4M cells.
+        let mut cell = (2.0 * mesh.mean_edge_length()).max(diag * 1e-6);
+        let count = |c: f64| ext.map(|e| (e / c).floor() as usize + 1);
+        while count(cell).iter().product::<usize>() > (4 * nf).clamp(1, 4_000_000) {
+            cell *= 1.5;
+        }
+        let dims = count(cell);
+        let idx = |p: [f64; 3], j: usize| {
+            (((p[j] - lo[j]) / cell).floor().max(0.0) as usize).min(dims[j] - 1)
+        };
+        let ncell = dims.iter().product::<usize>();
+        let mut counts = vec![0u32; ncell + 1];
+        let mut pairs: Vec<(u32, u32)> = Vec::new();
+        for (f, face) in mesh.faces().iter().enumerate() {
+            let ps = face.map(|v| mesh.position(v));
+            let mn: [usize; 3] =
+                std::array::from_fn(|j| idx([ps[0][j].min(ps[1][j]).min(ps[2][j]); 3], j));
+            let mx: [usize; 3] =
+                std::array::from_fn(|j| idx([ps[0][j].max(ps[1][j]).max(ps[2][j]); 3], j));
+            for i in mn[0]..=mx[0] {
+                for j in mn[1]..=mx[1] {
+                    for k in mn[2]..=mx[2] {
+                        let c = (i * dims[1] + j) * dims[2] + k;
+                        counts[c + 1] += 1;
+                        pairs.push((c as u32, f as u32));
+                    }
+                }
+            }
+        }
+        for c in 0..ncell {
+            counts[c + 1] += counts[c];
+        }
+        let mut fill = counts.clone();
+        let mut items = vec![0u32; pairs.len()];
+        for (c, f) in pairs {
+            items[fill[c as usize] as usize] = f;
+            fill[c as usize] += 1;
+        }
+        Self {
+            mesh,
+            origin: lo,
+            cell,
+            dims,
+            offsets: counts,
+            items,
+        }
+    }
+
+    /// Distance from `p` to the nearest triangle: rings of cells around the
+    /// cell of `p`, stopping once the best distance is within the ring's
+    /// inner radius (no unvisited cell can hold a nearer triangle).
+    fn distance(&self, p: [f64; 3]) -> f64 {
+        let c: [i64; 3] = std::array::from_fn(|j| {
+            (((p[j] - self.origin[j]) / self.cell).floor() as i64).clamp(0, self.dims[j] as i64 - 1)
+        });
+        let outside: f64 = (0..3)
+            .map(|j| {
+                let lo = self.origin[j];
+                let hi = lo + self.dims[j] as f64 * self.cell;
+                (lo - p[j]).max(p[j] - hi).max(0.0).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        let maxr = *self.dims.iter().max().unwrap_or(&1) as i64;
+        let mut best = f64::INFINITY;
+        for r in 0..=maxr {
+            for i in (c[0] - r)..=(c[0] + r) {
+                for j in (c[1] - r)..=(c[1] + r) {
+                    for k in (c[2] - r)..=(c[2] + r) {
+                        let on_shell =
+                            (i - c[0]).abs() == r || (j - c[1]).abs() == r || (k - c[2]).abs() == r;
+                        if !on_shell
+                            || i < 0
+                            || j < 0
+                            || k < 0
+                            || i >= self.dims[0] as i64
+                            || j >= self.dims[1] as i64
+                            || k >= self.dims[2] as i64
+                        {
+                            continue;
+                        }
+                        let cell =
+                            (i as usize * self.dims[1] + j as usize) * self.dims[2] + k as usize;
+                        let (a, b) = (self.offsets[cell] as usize, self.offsets[cell + 1] as usize);
+                        for &f in &self.items[a..b] {
+                            let t = self.mesh.faces()[f as usize].map(|v| self.mesh.position(v));
+                            best = best.min(point_triangle_distance(p, t[0], t[1], t[2]));
+                        }
+                    }
+                }
+            }
+            if best <= outside + r as f64 * self.cell {
+                break;
+            }
+        }
+        best
+    }
+}
+
+fn bounds(ps: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in ps {
+        for j in 0..3 {
+            lo[j] = lo[j].min(p[j]);
+            hi[j] = hi[j].max(p[j]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Length of the diagonal of the bounding box of `mesh`'s vertices.
+pub fn bounding_diagonal(mesh: &TriMesh) -> f64 {
+    let (lo, hi) = bounds(mesh.positions());
+    norm(sub(hi, lo))
+}
+
+/// Largest distance from the sample points of `from` (vertices, edge
+/// midpoints, face centroids) to the surface `to`.
+fn one_sided(from: &TriMesh, to: &TriMesh, control: &Control<'_>) -> Result<f64, RemeshError> {
+    let grid = TriangleGrid::new(to);
+    let mut worst = 0.0f64;
+    for (i, p) in from.positions().iter().enumerate() {
+        if i % 4096 == 0 && control.is_cancelled() {
+            return Err(RemeshError::Cancelled);
+        }
+        worst = worst.max(grid.distance(*p));
+    }
+    for (f, face) in from.faces().iter().enumerate() {
+        if f % 4096 == 0 && control.is_cancelled() {
+            return Err(RemeshError::Cancelled);
+        }
+        let ps = face.map(|v| from.position(v));
+        let mid = |a: [f64; 3], b: [f64; 3]| std::array::from_fn(|j| 0.5 * (a[j] + b[j]));
+        let g = std::array::from_fn(|j| (ps[0][j] + ps[1][j] + ps[2][j]) / 3.0);
+        for q in [g, mid(ps[0], ps[1]), mid(ps[1], ps[2]), mid(ps[2], ps[0])] {
+            worst = worst.max(grid.distance(q));
+        }
+    }
+    Ok(worst)
+}
+
+/// Symmetric Hausdorff distance between two surfaces, estimated at the
+/// vertices, edge midpoints and face centroids of each (a lower bound of the
+/// exact value, tight to the second order in the mesh size).
+pub fn hausdorff_distance(
+    a: &TriMesh,
+    b: &TriMesh,
+    control: &Control<'_>,
+) -> Result<f64, RemeshError> {
+    let ab = one_sided(a, b, control)?;
+    control.report(0.5);
+    let ba = one_sided(b, a, control)?;
+    control.report(1.0);
+    Ok(ab.max(ba))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::mesh::shapes::{flat_square, icosphere, torus};
+
+    fn check_valid(r: &Remesh) {
+        assert!(r.valid, "invalid output: {:?}", r.output_topology);
+        assert_eq!(r.output_topology.non_manifold_edges, 0);
+        assert_eq!(r.output_topology.misoriented_edges, 0);
+        assert_eq!(r.flipped, 0);
+        for w in r.energies.windows(2) {
+            assert!(w[1] <= w[0], "energy increased: {:?}", r.energies);
+        }
+    }
+
+    fn run(mesh: &TriMesh, count: usize, adaptation: Adaptation) -> (Remesh, f64) {
+        let options = RemeshOptions {
+            count,
+            adaptation,
+            ..Default::default()
+        };
+        let r = remesh(mesh, &options, &Control::new()).expect("remesh");
+        let h = hausdorff_distance(mesh, &r.mesh, &Control::new()).expect("hausdorff");
+        (r, h / bounding_diagonal(mesh))
+    }
+
+    #[test]
+    fn point_triangle_distance_cases() {
+        let (a, b, c) = ([0., 0., 0.], [1., 0., 0.], [0., 1., 0.]);
+        assert!((point_triangle_distance([0.2, 0.2, 0.5], a, b, c) - 0.5).abs() < 1e-12);
+        assert!((point_triangle_distance([2., 0., 0.], a, b, c) - 1.0).abs() < 1e-12);
+        let d = point_triangle_distance([1., 1., 0.], a, b, c);
+        assert!((d - 0.5f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn small_sphere_keeps_topology_and_energy_never_increases() {
+        let mesh = icosphere(4, 1.0);
+        let (r, rel) = run(&mesh, 500, Adaptation::Uniform);
+        check_valid(&r);
+        assert!(
+            r.topology_kept,
+            "{:?} vs {:?}",
+            r.output_topology, r.input_topology
+        );
+        assert_eq!(r.output_topology.genus, Some(0));
+        assert!(rel < 0.02, "hausdorff {rel}");
+    }
+
+    #[test]
+    fn curvature_adapted_torus_keeps_genus() {
+        let mesh = torus(120, 48, 1.0, 0.35);
+        let (r, _) = run(&mesh, 800, Adaptation::Curvature { strength: 2.0 });
+        check_valid(&r);
+        assert!(r.topology_kept, "{:?}", r.output_topology);
+        assert_eq!(r.output_topology.genus, Some(1));
+    }
+
+    #[test]
+    fn flat_square_keeps_its_boundary() {
+        let mesh = flat_square(60, 1.0, 0.0);
+        let (r, _) = run(&mesh, 300, Adaptation::Uniform);
+        assert_eq!(r.output_topology.misoriented_edges, 0);
+        assert_eq!(r.output_topology.non_manifold_edges, 0);
+        assert_eq!(r.input_topology.boundary_loops, 1);
+    }
+
+    /// The issue's bound: at 5,000 vertices the output keeps the genus and
+    /// the components and lies within 0.5 % of the bounding-box diagonal.
+    #[test]
+    fn five_thousand_vertices_on_sphere_and_torus() {
+        let sphere = icosphere(6, 1.0);
+        let torus = torus(300, 120, 1.0, 0.4);
+        for (mesh, genus) in [(sphere, 0), (torus, 1)] {
+            let started = std::time::Instant::now();
+            let (r, rel) = run(&mesh, 5000, Adaptation::Uniform);
+            println!(
+                "genus {genus}: {} vertices ({} added in {} rounds), hausdorff/diag {rel:.5}, energies {:?}, {:.2} s",
+                r.mesh.num_vertices(),
+                r.added,
+                r.repair_rounds,
+                r.energies,
+                started.elapsed().as_secs_f64()
+            );
+            check_valid(&r);
+            assert!(r.topology_kept, "{:?}", r.output_topology);
+            assert_eq!(r.output_topology.genus, Some(genus));
+            assert_eq!(r.output_topology.components, 1);
+            assert!(rel <= 0.005, "hausdorff / diagonal = {rel}");
+        }
+    }
+
+    #[test]
+    fn refuses_bad_input() {
+        let mesh = icosphere(1, 1.0);
+        let too_many = RemeshOptions {
+            count: mesh.num_vertices() + 1,
+            ..Default::default()
+        };
+        assert!(matches!(
+            remesh(&mesh, &too_many, &Control::new()),
+            Err(RemeshError::InvalidOption {
+                option: "count",
+                ..
+            })
+        ));
+        let pos = vec![
+            [0., 0., 0.],
+            [1., 0., 0.],
+            [0., 1., 0.],
+            [0., 0., 1.],
+            [1., 1., 1.],
+        ];
+        let faces = vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]];
+        let bowtie = TriMesh::from_parts_unchecked(pos, faces);
+        let opts = RemeshOptions {
+            count: 4,
+            ..Default::default()
+        };
+        assert!(matches!(
+            remesh(&bowtie, &opts, &Control::new()),
+            Err(RemeshError::NonManifold { .. })
+        ));
+    }
+
+    #[test]
+    fn a_raised_flag_stops_it() {
+        let mesh = icosphere(3, 1.0);
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let control = Control::new().with_cancel(&flag);
+        let options = RemeshOptions {
+            count: 100,
+            ..Default::default()
+        };
+        let r = remesh(&mesh, &options, &control);
+        assert!(matches!(r, Err(RemeshError::Cancelled)), "{r:?}");
+    }
+}
