@@ -146,6 +146,17 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"dataset": small_image, "count": 20000}),
         ),
         (
+            "domain.mesh",
+            "/v1/domain/mesh",
+            json!({"polygons": {"type": "Polygon", "coordinates": [[[0, 0], [2999, 0], [2999, 2999], [0, 2999]]]},
+                   "cost": shaded, "count": 3_000_000}),
+        ),
+        (
+            "mesh.remesh",
+            "/v1/mesh/remesh",
+            json!({"mesh": mesh, "count": 20000}),
+        ),
+        (
             "grid.shape_from_shading",
             "/v1/grid/shape-from-shading",
             json!({"image": shaded, "anchors": {"kind": "border"}}),

@@ -44,6 +44,11 @@
 //!
 //! Angles below the bound remain only at input corners sharper than it
 //! (no refinement can open them).
+//!
+//! The caller's cancel flag is polled once per pass, sweep and lattice
+//! row and every 4,096 insertions or moves; the bulk loads of the
+//! triangulation and `spade`'s refinement run to their end (about a second
+//! per million vertices).
 
 use std::collections::HashMap;
 
@@ -578,7 +583,7 @@ fn mesh_once(
     if matches!(field, SizeField::Uniform) {
         // 3 (uniform size): the hexagonal lattice of side h₀, kept where it
         // is inside and at least h₀/2 from the boundary, in one bulk load.
-        interior = lattice(&oracle, &boundary, &edges, h0, limit)?;
+        interior = lattice(&oracle, &boundary, &edges, h0, limit, control)?;
         poll()?;
         let mut all = boundary.clone();
         all.extend_from_slice(&interior);
@@ -630,7 +635,10 @@ fn mesh_once(
         let cell = h0 * 0.25;
         let mut grid: CellMap<(i64, i64), Vec<usize>> = CellMap::default();
         let key = |p: [f64; 2]| ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
-        for (_, c, hint) in candidates {
+        for (k, (_, c, hint)) in candidates.into_iter().enumerate() {
+            if k % 4096 == 4095 {
+                poll()?;
+            }
             if !admissible(&cdt, &oracle, c, hint) {
                 continue;
             }
@@ -669,7 +677,10 @@ fn mesh_once(
             let (ka, kb) = (key(*a), key(*b));
             (ka.0 / 8, ka.1, ka.0).cmp(&(kb.0 / 8, kb.1, kb.0))
         });
-        for p in accepted {
+        for (k, p) in accepted.into_iter().enumerate() {
+            if k % 4096 == 4095 {
+                poll()?;
+            }
             // A point that lands on an existing vertex returns that vertex.
             let fresh = boundary.len() + interior.len();
             if let Ok(v) = cdt.insert(Point2::new(p[0], p[1])) {
@@ -745,7 +756,10 @@ fn mesh_once(
             // insertion appends, so `slot` follows where each vertex went.
             let mut slot: Vec<usize> = (0..interior.len()).collect();
             let mut at: Vec<usize> = (0..interior.len()).collect();
-            for (id, q) in moves {
+            for (m, (id, q)) in moves.into_iter().enumerate() {
+                if m % 4096 == 4095 {
+                    poll()?;
+                }
                 let (k, last) = (slot[id], interior.len() - 1);
                 let old = interior[k];
                 cdt.remove(FixedVertexHandle::from_index(nb + k));
@@ -973,6 +987,7 @@ fn lattice(
     edges: &[[usize; 2]],
     h0: f64,
     limit: usize,
+    control: &Control<'_>,
 ) -> Result<Vec<[f64; 2]>, DomainError> {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for p in boundary {
@@ -1023,6 +1038,9 @@ fn lattice(
     let mut out = Vec::new();
     let mut hint = FixedVertexHandle::from_index(0);
     for r in 0..rows {
+        if control.is_cancelled() {
+            return Err(DomainError::Cancelled);
+        }
         let x = lo[0] + r as f64 * dy;
         let shift = if r % 2 == 1 { 0.5 * h0 } else { 0.0 };
         for c in 0..columns {
