@@ -109,8 +109,9 @@ pub struct DatasetMeta {
     pub id: String,
     /// `image` (2D), `volume` (3D) or `mesh`.
     pub kind: DatasetKind,
-    /// Shape, axis 0 first (a mesh: `[vertices, 3]`).
-    #[schema(min_items = 2, max_items = 3)]
+    /// Shape, axis 0 first (a mesh: `[vertices, 3]`; results per vertex or
+    /// per triangle are 1D).
+    #[schema(min_items = 1, max_items = 3)]
     pub shape: Vec<usize>,
     /// Element type.
     pub dtype: DType,

@@ -365,14 +365,17 @@ pub fn encode(
     description = "The array in the representation named by `?format=`, else by `Accept`, else NPY: \
 `npy` (exact, any dtype), `tiff` (32-bit float), `png16` (16-bit grey scaled to the finite range), \
 `png` (colour-mapped for people; distance maps get iso-distance lines) or `json` \
-(`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406).",
+(`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406). A mesh \
+dataset is offered as `ply` (binary PLY with its vertex properties, the default), `obj` or `json`.",
     params(DatasetPath, DataQuery),
     responses(
-        (status = 200, description = "The array.",
+        (status = 200, description = "The array (or the mesh).",
             content(
                 (crate::http::openapi::FileBytes = "application/x-npy"),
                 (crate::http::openapi::FileBytes = "image/tiff"),
                 (crate::http::openapi::FileBytes = "image/png"),
+                (crate::http::openapi::FileBytes = "model/ply"),
+                (crate::http::openapi::FileBytes = "model/obj"),
                 (ArrayJson = "application/json", example = json!({"shape": [2, 2], "dtype": "f64", "data": [0.0, 1.0, 1.0, 1.5]})),
             )
         ),

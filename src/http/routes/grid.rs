@@ -35,8 +35,8 @@ pub struct DatasetRef {
     pub url: String,
     /// URL of its values (`?format=npy|tiff|png16|png|json`).
     pub data_url: String,
-    /// Shape, axis 0 first.
-    #[schema(min_items = 2, max_items = 3)]
+    /// Shape, axis 0 first (1D for per-vertex or per-triangle results).
+    #[schema(min_items = 1, max_items = 3)]
     pub shape: Vec<usize>,
 }
 

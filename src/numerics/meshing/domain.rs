@@ -481,7 +481,20 @@ pub fn mesh_domain(
             "no triangle lies inside the rings".into(),
         ));
     }
-    let estimate = |h0: f64| (2.0 * weighted / (3f64.sqrt() * h0 * h0)).ceil();
+    // The boundary's geodesic length at h₀ = 1: about P / h₀ boundary points.
+    let perimeter: f64 = domain
+        .rings
+        .iter()
+        .map(|r| {
+            (0..r.len())
+                .map(|k| geodesic_length(r[k], r[(k + 1) % r.len()], &s, 1.0))
+                .sum::<f64>()
+        })
+        .sum();
+    let ring_vertices: usize = domain.rings.iter().map(Vec::len).sum();
+    let estimate = |h0: f64| {
+        (2.0 * weighted / (3f64.sqrt() * h0 * h0) + perimeter / h0).ceil() + ring_vertices as f64
+    };
     let mut h0 = match options.size {
         MeshSize::EdgeLength(h) => {
             if !(h.is_finite() && h > 0.0) {
@@ -499,15 +512,6 @@ pub fn mesh_domain(
             // boundary's geodesic length at h₀ = 1 and κ = 1.22 measured
             // (relaxed Delaunay triangles are smaller than equilateral
             // ones of side h₀): a quadratic in 1 / h₀.
-            let perimeter: f64 = domain
-                .rings
-                .iter()
-                .map(|r| {
-                    (0..r.len())
-                        .map(|k| geodesic_length(r[k], r[(k + 1) % r.len()], &s, 1.0))
-                        .sum::<f64>()
-                })
-                .sum();
             let kappa = if matches!(field, SizeField::Uniform) {
                 KAPPA_LATTICE
             } else {
