@@ -88,23 +88,8 @@ pub fn run(args: &RemeshArgs) -> Result<(), String> {
         return Err("geodex: the operation returned no mesh".into());
     };
     let m = &mesh.mesh.mesh;
-    let ext = args
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("ply")
-        .to_ascii_lowercase();
-    let bytes = match ext.as_str() {
-        "obj" => mesh_write::write_obj(m),
-        "json" => serde_json::to_vec(&mesh_write::write_json(m, &[]))
-            .map_err(|e| format!("--out: {e}"))?,
-        "ply" => mesh_write::write_ply(m, &[]),
-        other => {
-            return Err(format!(
-                "--out: unknown mesh extension '.{other}': use .ply, .obj or .json"
-            ))
-        }
-    };
+    let bytes =
+        mesh_write::encode_by_extension(m, &[], &args.out).map_err(|e| format!("--out: {e}"))?;
     std::fs::write(&args.out, bytes)
         .map_err(|e| format!("--out: cannot write '{}': {e}", args.out.display()))?;
     if let Some(p) = &args.stats {

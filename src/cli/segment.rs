@@ -743,23 +743,7 @@ fn write_mesh_file(
     props: &[mesh_write::VertexProperty<'_>],
     out: &Path,
 ) -> Result<(), SegmentCliError> {
-    let ext = out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("ply")
-        .to_ascii_lowercase();
-    let bytes = match ext.as_str() {
-        "obj" => mesh_write::write_obj(m),
-        "json" => serde_json::to_vec(&mesh_write::write_json(m, props))
-            .map_err(|e| flag("--out", e.to_string()))?,
-        "ply" => mesh_write::write_ply(m, props),
-        other => {
-            return Err(flag(
-                "--out",
-                format!("unknown mesh extension '.{other}': use .ply, .obj or .json"),
-            ))
-        }
-    };
+    let bytes = mesh_write::encode_by_extension(m, props, out).map_err(|e| flag("--out", e))?;
     std::fs::write(out, bytes)
         .map_err(|e| flag("--out", format!("cannot write '{}': {e}", out.display())))
 }

@@ -114,3 +114,25 @@ pub fn write_json(mesh: &TriMesh, props: &[VertexProperty<'_>]) -> serde_json::V
         "properties": map,
     })
 }
+
+/// The bytes of `mesh` in the format named by a file extension (`ply`,
+/// the default without one, `obj` or `json`), or why not.
+pub fn encode_by_extension(
+    mesh: &TriMesh,
+    props: &[VertexProperty<'_>],
+    path: &std::path::Path,
+) -> Result<Vec<u8>, String> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("ply")
+        .to_ascii_lowercase();
+    match ext.as_str() {
+        "obj" => Ok(write_obj(mesh)),
+        "json" => serde_json::to_vec(&write_json(mesh, props)).map_err(|e| e.to_string()),
+        "ply" => Ok(write_ply(mesh, props)),
+        other => Err(format!(
+            "unknown mesh extension '.{other}': use .ply, .obj or .json"
+        )),
+    }
+}

@@ -442,15 +442,18 @@ pub struct DomainMesh {
 /// ```
 /// use geodex::numerics::meshing::domain::{mesh_domain, Domain, DomainMeshOptions, MeshSize};
 /// use geodex::numerics::Control;
-/// let square = Domain::new(vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]]).unwrap();
+/// # fn main() -> Result<(), geodex::numerics::meshing::domain::DomainError> {
+/// let square = Domain::new(vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]])?;
 /// let options = DomainMeshOptions { size: MeshSize::EdgeLength(1.0), ..Default::default() };
-/// let mesh = mesh_domain(&square, &options, &Control::default()).unwrap();
+/// let mesh = mesh_domain(&square, &options, &Control::default())?;
 /// let area: f64 = mesh.triangles.iter().map(|t| {
 ///     let [a, b, c] = t.map(|v| mesh.points[v as usize]);
 ///     ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])) / 2.0
 /// }).sum();
 /// assert!((area - 100.0).abs() < 1e-9);
 /// assert!(mesh.points.len() > 100 && mesh.points.len() < 160);
+/// # Ok(())
+/// # }
 /// ```
 pub fn mesh_domain(
     domain: &Domain,
