@@ -46,7 +46,7 @@ pub struct RemeshArgs {
     /// Geodesic Lloyd iterations.
     #[arg(long, default_value_t = 5)]
     pub lloyd_iterations: usize,
-    /// Where to write the new mesh: `.ply`, `.obj` or `.json`.
+    /// Where to write the new mesh: `.ply`, `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "OUT.ply")]
     pub out: PathBuf,
     /// Where to write the statistics (JSON).

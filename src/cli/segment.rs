@@ -278,12 +278,15 @@ pub struct MeshArgs {
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the mesh: `.ply` (with the image value per vertex), `.obj` or `.json`.
+    /// Where to write the mesh: `.ply` (with the image value per vertex), `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "MESH.ply")]
     pub out: PathBuf,
     /// Where to write the piecewise-linear approximation of the image (f64 NPY).
     #[arg(long, value_name = "A.npy")]
     pub approximation: Option<PathBuf>,
+    /// Where to write a PNG of the mesh drawn over the image.
+    #[arg(long, value_name = "P.png")]
+    pub picture: Option<PathBuf>,
     /// Where to write the statistics (JSON).
     #[arg(long, value_name = "S.json")]
     pub stats: Option<PathBuf>,
@@ -320,7 +323,7 @@ pub struct DomainMeshArgs {
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the mesh: `.ply`, `.obj` or `.json`.
+    /// Where to write the mesh: `.ply`, `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "MESH.ply")]
     pub out: PathBuf,
     /// Where to write the statistics (JSON).
@@ -737,7 +740,7 @@ pub fn run_domain_mesh(args: &DomainMeshArgs) -> Result<(), SegmentCliError> {
     Ok(())
 }
 
-/// Writes a mesh as `.ply`, `.obj` or `.json` after `out`'s extension.
+/// Writes a mesh as `.ply`, `.obj`, `.json` or `.glb` after `out`'s extension.
 fn write_mesh_file(
     m: &crate::numerics::mesh::TriMesh,
     props: &[mesh_write::VertexProperty<'_>],
@@ -780,6 +783,12 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         "--approximation",
         &args.approximation,
     )?;
+    if let (Some(p), Some(picture)) = (&args.picture, array(&out, "picture")) {
+        let png = io::render_png(picture, &io::RenderOptions::default())
+            .map_err(|e| flag("--picture", e.to_string()))?;
+        std::fs::write(p, png)
+            .map_err(|e| flag("--picture", format!("cannot write '{}': {e}", p.display())))?;
+    }
     if let Some(p) = &args.stats {
         write_json("--stats", p, &out.document)?;
     }

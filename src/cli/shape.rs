@@ -16,7 +16,7 @@ use clap::Args;
 
 use super::mesh_distance::{load_mesh_file, write_npy, MeshMethodArg, One};
 use super::run::{run_operation, CliRunError};
-use crate::io::mesh::write::write_ply;
+use crate::io::mesh::write::encode_by_extension;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
 use crate::ops::spec::mesh::{HeatSpec, MeshMethodSpec};
@@ -70,7 +70,8 @@ pub struct EmbedArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
-    /// Output: the canonical form, the input's faces at the embedded positions (PLY).
+    /// Output: the canonical form, the input's faces at the embedded positions
+    /// (`.ply`, `.obj`, `.json` or `.glb`, after the extension).
     #[arg(long, value_name = "FORM.ply")]
     pub out: PathBuf,
     /// Output: the vertices × dimensions f64 coordinates (NPY).
@@ -147,8 +148,9 @@ pub fn run_embed(args: &EmbedArgs) -> Result<(), String> {
         .mesh
         .as_ref()
         .ok_or("the operation returned no mesh")?;
-    std::fs::write(&args.out, write_ply(&form.mesh.mesh, &[]))
+    let bytes = encode_by_extension(&form.mesh.mesh, &[], &args.out)
         .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    std::fs::write(&args.out, bytes).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
     if let Some(p) = &args.coordinates {
         let x = output
             .array("coordinates")

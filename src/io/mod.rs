@@ -37,6 +37,7 @@ pub mod mesh;
 pub mod nifti;
 pub mod npy;
 pub mod raster;
+pub mod mesh_picture;
 pub mod render;
 pub mod tiff;
 

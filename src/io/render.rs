@@ -17,7 +17,8 @@
 //!
 //! 2D arrays `(rows, cols)` give `cols × rows` pixels. 3D arrays show the
 //! middle slice along axis 0 (index `n0 / 2`), so a `(1, rows, cols)` grid
-//! shows its only slice.
+//! shows its only slice; the exception is a `u8` array of shape `(rows,
+//! cols, 3)`, which is already an RGB picture and is written as it is.
 //!
 //! The colour maps are tables of 17 control points (`t = k/16`) with linear
 //! interpolation between them. The control points were computed for this
@@ -251,6 +252,14 @@ fn contrast(c: [u8; 3]) -> [u8; 3] {
 /// # Ok::<(), geodex::io::IoError>(())
 /// ```
 pub fn render_png(array: &ArrayData, options: &RenderOptions) -> Result<Vec<u8>, IoError> {
+    if let ArrayData::U8(a) = array {
+        if let [rows, cols, 3] = a.shape()[..] {
+            // Already a picture (e.g. a mesh drawn over its image): as is.
+            let (w, h) = (side(cols)?, side(rows)?);
+            let raw: Vec<u8> = a.iter().copied().collect();
+            return write_png(ImageBuffer::<Rgb<u8>, _>::from_raw(w, h, raw));
+        }
+    }
     let (rows, cols, values) = shown_plane(array)?;
     let (w, h) = (side(cols)?, side(rows)?);
     let categorical = match options.style {
@@ -403,6 +412,14 @@ mod tests {
             ..Default::default()
         };
         assert!(render_png(&ArrayData::F64(ArrayD::zeros(vec![2, 2])), &bad).is_err());
+    }
+
+    #[test]
+    fn rgb_pictures_are_written_as_they_are() {
+        let a = ArrayD::from_shape_fn(vec![2, 3, 3], |i| (10 * i[0] + 3 * i[1] + i[2]) as u8);
+        let img = rgb(&render_png(&ArrayData::U8(a), &RenderOptions::default()).expect("renders"));
+        assert_eq!(img.dimensions(), (3, 2));
+        assert_eq!(img.get_pixel(2, 1).0, [16, 17, 18]);
     }
 
     #[test]

@@ -18,6 +18,7 @@ use super::spec::grid::check_shape;
 use super::spec::mesh::MeshInput;
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray, OutputMesh};
 use crate::io::mesh::report_of;
+use crate::io::mesh_picture::mesh_picture;
 use crate::io::ArrayData;
 use crate::numerics::mesh::{Topology, TriMesh};
 use crate::numerics::meshing::{
@@ -137,7 +138,8 @@ impl Operation for GridMeshRequest {
     /// Arrays: `approximation` (f64, the piecewise-linear image), `cost`
     /// (f64, the metric `W`), `vertices` (f64, `nv × 2`, index coordinates),
     /// `triangles` (int32, `nt × 3`), `values` (f64 per vertex, on the mesh
-    /// as the `value` property). Mesh: `mesh` (what a job's result lacks:
+    /// as the `value` property), `picture` (u8 RGB, the mesh drawn over the
+    /// image, see [`crate::io::mesh_picture`]). Mesh: `mesh` (what a job's result lacks:
     /// it has `vertices` and `triangles`). Document: `{"stats": {...}}`.
     fn run(
         &self,
@@ -228,6 +230,8 @@ impl Operation for GridMeshRequest {
             mesh.triangles.clone(),
         )
         .map_err(|e| OpError::invalid("dataset", e.to_string()))?;
+        let picture = mesh_picture(&image, shape[0], shape[1], &mesh.points, &mesh.triangles)
+            .map_err(|e| OpError::invalid("dataset", e.to_string()))?;
         let topology = Topology::new(&tri);
         let report = report_of(&tri, &topology);
         let nv = mesh.points.len();
@@ -267,6 +271,11 @@ impl Operation for GridMeshRequest {
                 OutputArray {
                     name: "values".into(),
                     array: shaped(mesh.values, vec![nv])?,
+                    spacing: None,
+                },
+                OutputArray {
+                    name: "picture".into(),
+                    array: picture,
                     spacing: None,
                 },
             ],

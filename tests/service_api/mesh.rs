@@ -123,6 +123,31 @@ async fn mesh_upload_distance_download() {
     assert_eq!(j["properties"]["distance"][5], 0.0);
     let obj = app.get(&format!("{url}?format=obj")).await;
     assert_eq!(obj.headers()["content-type"], "model/obj");
+    // GLB by Accept, read back with an independent reader: 642 positions,
+    // the distance as an attribute and as colours.
+    let glb = app
+        .client
+        .get(app.url(&url))
+        .header("accept", "model/gltf-binary")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(glb.headers()["content-type"], "model/gltf-binary");
+    let bytes = glb.bytes().await.unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).expect("a valid GLB");
+    let blob = gltf.blob.as_deref().unwrap();
+    let prim = gltf.document.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = prim.reader(|_| Some(blob));
+    assert_eq!(reader.read_positions().unwrap().count(), 642);
+    assert_eq!(reader.read_indices().unwrap().into_u32().count(), 3 * 1280);
+    assert!(reader.read_colors(0).is_some());
+    let (_, dist) = prim
+        .attributes()
+        .find(|(s, _)| s.to_string() == "_DISTANCE")
+        .expect("the distance attribute");
+    let view = dist.view().unwrap();
+    let at = view.offset() + 4 * 5;
+    assert_eq!(f32::from_le_bytes(blob[at..at + 4].try_into().unwrap()), 0.0);
 
     // Voronoi, paths, sampling.
     let v: serde_json::Value = post(

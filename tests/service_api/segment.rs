@@ -442,6 +442,26 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
         .await
         .expect("obj");
     assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), nt);
+    // The picture: the mesh over the image, magnified 1024/48 -> 4 (capped),
+    // as a PNG; vertex 0's pixel has the vertex colour.
+    let s = geodex::io::mesh_picture::magnification(n0, n1);
+    assert_eq!(s, 4);
+    assert_eq!(body["picture"]["shape"], json!([s * n0, s * n1, 3]));
+    let pic_url = body["picture"]["data_url"].as_str().expect("picture url");
+    let png = app.get(&format!("{pic_url}?format=png")).await;
+    assert_eq!(png.headers()["content-type"], "image/png");
+    let img = image::load_from_memory(&png.bytes().await.expect("bytes"))
+        .expect("a PNG")
+        .to_rgb8();
+    assert_eq!(img.dimensions(), ((s * n1) as u32, (s * n0) as u32));
+    let verts = npy_f64(&app, &body["vertices"]).await;
+    let at = |x: f64| (x * s as f64 + (s as f64 - 1.0) / 2.0).round() as u32;
+    let (r, c) = (at(verts[0]), at(verts[1]));
+    assert_eq!(
+        img.get_pixel(c, r).0,
+        geodex::io::mesh_picture::VERTEX,
+        "vertex 0 at ({r}, {c})"
+    );
     // The same request runs as a job (one registry line).
     assert!(geodex::ops::registry::find("grid.mesh").is_some());
 }

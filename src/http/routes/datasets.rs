@@ -13,7 +13,7 @@ use utoipa::{IntoParams, ToSchema};
 use crate::datasets::{valid_id, DatasetMeta, StoreError};
 use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
 use crate::http::AppState;
-use crate::io::mesh::{read_mesh, write, MeshFormat, MeshLimits};
+use crate::io::mesh::{glb, read_mesh, write, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData, Decoded, Format};
 use crate::problem::{io_error, ApiError};
 
@@ -89,6 +89,10 @@ pub enum OutputFormat {
     Ply,
     /// Meshes: Wavefront OBJ, geometry only (`model/obj`).
     Obj,
+    /// Meshes: glTF 2.0 binary for web viewers (`model/gltf-binary`): positions, normals,
+    /// `COLOR_0` from the first vertex property and each property as `_DISTANCE`, `_LABEL`,
+    /// `_VALUE`.
+    Glb,
 }
 
 /// Query of a download.
@@ -305,6 +309,7 @@ pub fn negotiate(query: Option<OutputFormat>, headers: &HeaderMap) -> OutputForm
             "application/json" => return OutputFormat::Json,
             "model/ply" => return OutputFormat::Ply,
             "model/obj" => return OutputFormat::Obj,
+            "model/gltf-binary" => return OutputFormat::Glb,
             _ => {}
         }
     }
@@ -349,8 +354,8 @@ pub fn encode(
                 };
                 io::render_png(array, &options).map(|b| (b, "image/png"))
             }
-            OutputFormat::Ply | OutputFormat::Obj => return Err(ApiError::not_acceptable(
-                "ply and obj are offered for mesh datasets only; use npy, tiff, png16, png or json",
+            OutputFormat::Ply | OutputFormat::Obj | OutputFormat::Glb => return Err(ApiError::not_acceptable(
+                "ply, obj and glb are offered for mesh datasets only; use npy, tiff, png16, png or json",
             )),
         };
     encoded.map_err(|e| ApiError::not_acceptable(format!("cannot encode this array: {e}")))
@@ -366,7 +371,9 @@ pub fn encode(
 `npy` (exact, any dtype), `tiff` (32-bit float), `png16` (16-bit grey scaled to the finite range), \
 `png` (colour-mapped for people; distance maps get iso-distance lines) or `json` \
 (`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406). A mesh \
-dataset is offered as `ply` (binary PLY with its vertex properties, the default), `obj` or `json`.",
+dataset is offered as `ply` (binary PLY with its vertex properties, the default), `obj`, `json` \
+or `glb` (glTF binary, what web viewers load, with the vertex properties as colours and \
+attributes).",
     params(DatasetPath, DataQuery),
     responses(
         (status = 200, description = "The array (or the mesh).",
@@ -376,6 +383,7 @@ dataset is offered as `ply` (binary PLY with its vertex properties, the default)
                 (crate::http::openapi::FileBytes = "image/png"),
                 (crate::http::openapi::FileBytes = "model/ply"),
                 (crate::http::openapi::FileBytes = "model/obj"),
+                (crate::http::openapi::FileBytes = "model/gltf-binary"),
                 (ArrayJson = "application/json", example = json!({"shape": [2, 2], "dtype": "f64", "data": [0.0, 1.0, 1.0, 1.5]})),
             )
         ),
@@ -476,7 +484,7 @@ async fn upload_mesh(
 /// Largest mesh offered as JSON or OBJ, in vertices.
 pub const MESH_TEXT_MAX_VERTICES: usize = 2_000_000;
 
-/// Downloads a mesh dataset: PLY (stored bytes, default), OBJ or JSON.
+/// Downloads a mesh dataset: PLY (stored bytes, default), OBJ, JSON or GLB.
 async fn mesh_data(
     state: &AppState,
     id: &str,
@@ -488,6 +496,7 @@ async fn mesh_data(
         None => match negotiate(None, headers) {
             OutputFormat::Json => OutputFormat::Json,
             OutputFormat::Obj => OutputFormat::Obj,
+            OutputFormat::Glb => OutputFormat::Glb,
             _ => OutputFormat::Ply,
         },
     };
@@ -496,13 +505,13 @@ async fn mesh_data(
     let bytes = crate::datasets::blocking(move || store.read_mesh_file_blocking(&id)).await?;
     let (body, media) = match format {
         OutputFormat::Ply => (bytes, "model/ply"),
-        OutputFormat::Obj | OutputFormat::Json => {
+        OutputFormat::Obj | OutputFormat::Json | OutputFormat::Glb => {
             tokio::task::spawn_blocking(move || -> Result<(Vec<u8>, &'static str), ApiError> {
                 let loaded = read_mesh(&bytes, Some(MeshFormat::Ply), &MeshLimits::default())
                     .map_err(ApiError::internal)?;
-                if loaded.mesh.num_vertices() > MESH_TEXT_MAX_VERTICES {
+                if format != OutputFormat::Glb && loaded.mesh.num_vertices() > MESH_TEXT_MAX_VERTICES {
                     return Err(ApiError::not_acceptable(format!(
-                        "obj and json are offered for meshes of at most {MESH_TEXT_MAX_VERTICES} vertices; use ply"
+                        "obj and json are offered for meshes of at most {MESH_TEXT_MAX_VERTICES} vertices; use ply or glb"
                     )));
                 }
                 if format == OutputFormat::Obj {
@@ -519,6 +528,9 @@ async fn mesh_data(
                 if let Some(v) = &extra.value {
                     props.push(write::VertexProperty::F64("value", v));
                 }
+                if format == OutputFormat::Glb {
+                    return Ok((glb::write_glb(&loaded.mesh, &props), "model/gltf-binary"));
+                }
                 let json = write::write_json(&loaded.mesh, &props);
                 Ok((serde_json::to_vec(&json).map_err(ApiError::internal)?, "application/json"))
             })
@@ -527,7 +539,7 @@ async fn mesh_data(
         }
         _ => {
             return Err(ApiError::not_acceptable(
-                "a mesh dataset is offered as ply (default), obj or json",
+                "a mesh dataset is offered as ply (default), obj, json or glb",
             ))
         }
     };

@@ -323,7 +323,7 @@ pub async fn sample(
 pub struct GridMeshResponse {
     /// The mesh (a mesh dataset: vertices in index coordinates with `z = 0`,
     /// the image value per vertex as the `value` property; download it as
-    /// PLY, OBJ or JSON).
+    /// PLY, OBJ, JSON or GLB).
     pub mesh: DatasetRef,
     /// The piecewise-linear approximation of the image on the mesh (f64, the image's shape).
     pub approximation: DatasetRef,
@@ -333,6 +333,10 @@ pub struct GridMeshResponse {
     pub vertices: DatasetRef,
     /// The triangles (int32, `nt × 3`, counter-clockwise in the (axis 0, axis 1) plane).
     pub triangles: DatasetRef,
+    /// The mesh drawn over the image (u8 RGB, `(s·rows, s·cols, 3)` with a
+    /// magnification `s` of 1 to 4 so that the larger side nears 1024
+    /// pixels): download it with `?format=png`.
+    pub picture: DatasetRef,
     /// `vertices`, `triangles`, `l2_error` (root mean square of image minus
     /// approximation), `added` (vertices the Delaunay repair added),
     /// `repaired` (defects by kind), `covering_radius`, `seconds`, and with
@@ -352,8 +356,9 @@ pub struct GridMeshResponse {
 farthest-point sampling under it (the four corners first), and triangulates them by the dual of \
 their geodesic Voronoi cells, repaired (samples added and counted) until it is a valid \
 triangulation covering the image. Returns the mesh as a mesh dataset (index coordinates, axis 0 \
-first), the piecewise-linear approximation of the image on it, its L2 error, and by default the \
-error of a uniform mesh with the same vertex count.",
+first), the piecewise-linear approximation of the image on it, its L2 error, a picture of the mesh \
+over the image (`picture`, as PNG with `?format=png`), and by default the error of a uniform mesh \
+with the same vertex count.",
     request_body = GridMeshRequest,
     responses(
         (status = 200, description = "The image was meshed.", body = GridMeshResponse),
@@ -379,7 +384,7 @@ pub async fn mesh(
 #[derive(Debug, Serialize, ToSchema)]
 pub struct DomainMeshResponse {
     /// The mesh (a mesh dataset: vertices in index coordinates with `z = 0`;
-    /// download it as PLY, OBJ or JSON).
+    /// download it as PLY, OBJ, JSON or GLB).
     pub mesh: DatasetRef,
     /// The vertices (f64, `nv × 2`, index coordinates, axis 0 first).
     pub vertices: DatasetRef,

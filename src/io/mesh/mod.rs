@@ -11,12 +11,13 @@
 //! (an index out of range, a non-finite coordinate, no face left).
 //!
 //! * [`obj`], [`off`], [`stl`], [`ply`]: the readers.
-//! * [`write`]: PLY / OBJ / JSON writers.
+//! * [`write`]: PLY / OBJ / JSON writers; [`glb`]: glTF binary.
 
 pub mod obj;
 pub mod off;
 pub mod ply;
 pub mod stl;
+pub mod glb;
 pub mod write;
 
 use std::collections::HashSet;

@@ -116,7 +116,7 @@ pub fn write_json(mesh: &TriMesh, props: &[VertexProperty<'_>]) -> serde_json::V
 }
 
 /// The bytes of `mesh` in the format named by a file extension (`ply`,
-/// the default without one, `obj` or `json`), or why not.
+/// the default without one, `obj`, `json` or `glb`), or why not.
 pub fn encode_by_extension(
     mesh: &TriMesh,
     props: &[VertexProperty<'_>],
@@ -131,8 +131,9 @@ pub fn encode_by_extension(
         "obj" => Ok(write_obj(mesh)),
         "json" => serde_json::to_vec(&write_json(mesh, props)).map_err(|e| e.to_string()),
         "ply" => Ok(write_ply(mesh, props)),
+        "glb" => Ok(super::glb::write_glb(mesh, props)),
         other => Err(format!(
-            "unknown mesh extension '.{other}': use .ply, .obj or .json"
+            "unknown mesh extension '.{other}': use .ply, .obj, .json or .glb"
         )),
     }
 }
