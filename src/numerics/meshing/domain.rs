@@ -608,15 +608,16 @@ fn mesh_once(
         poll()?;
         let mut candidates: Vec<(f64, [f64; 2], FixedVertexHandle)> = Vec::new();
         let mut consider = |f: spade::handles::FaceHandle<'_, InnerTag, _, _, _, _>| {
-            let pos = f.positions();
-            if !oracle.face(f.vertices().map(|v| v.fix().index()), &pos) {
+            let vs = f.vertices();
+            let pos = vs.map(|v| v.position());
+            if !oracle.face(vs.map(|v| v.fix().index()), &pos) {
                 return;
             }
             let c = f.circumcenter();
             let radius = dist([c.x, c.y], [pos[0].x, pos[0].y]);
             let hc = h(centroid(&pos));
             if radius > BETA * hc {
-                candidates.push((radius / hc, [c.x, c.y], f.vertices()[0].fix()));
+                candidates.push((radius / hc, [c.x, c.y], vs[0].fix()));
             }
         };
         match &work {
@@ -638,7 +639,9 @@ fn mesh_once(
         }
         let mut next: Vec<usize> = Vec::new();
         candidates.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let mut accepted: Vec<[f64; 2]> = Vec::new();
+        // Accepted points, each with a vertex of the face it came from (a
+        // walk from there to the point is short).
+        let mut accepted: Vec<([f64; 2], FixedVertexHandle)> = Vec::new();
         let cell = h0 * 0.25;
         let mut grid: CellMap<(i64, i64), Vec<usize>> = CellMap::default();
         let key = |p: [f64; 2]| ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
@@ -656,7 +659,7 @@ fn mesh_once(
             'scan: for di in -reach..=reach {
                 for dj in -reach..=reach {
                     if let Some(list) = grid.get(&(ki + di, kj + dj)) {
-                        if list.iter().any(|&a| dist(accepted[a], c) < 0.5 * hc) {
+                        if list.iter().any(|&a| dist(accepted[a].0, c) < 0.5 * hc) {
                             near = true;
                             break 'scan;
                         }
@@ -668,7 +671,7 @@ fn mesh_once(
                 continue;
             }
             grid.entry(key(c)).or_default().push(accepted.len());
-            accepted.push(c);
+            accepted.push((c, hint));
         }
         if accepted.is_empty() {
             break;
@@ -681,16 +684,17 @@ fn mesh_once(
         }
         // Insert in row order of the hash cells so that the walks are short.
         accepted.sort_by(|a, b| {
-            let (ka, kb) = (key(*a), key(*b));
+            let (ka, kb) = (key(a.0), key(b.0));
             (ka.0 / 8, ka.1, ka.0).cmp(&(kb.0 / 8, kb.1, kb.0))
         });
-        for (k, p) in accepted.into_iter().enumerate() {
+        for (k, (p, hint)) in accepted.into_iter().enumerate() {
             if k % 4096 == 4095 {
                 poll()?;
             }
             // A point that lands on an existing vertex returns that vertex.
+            // Vertices are only appended here, so the hint still exists.
             let fresh = boundary.len() + interior.len();
-            if let Ok(v) = cdt.insert(Point2::new(p[0], p[1])) {
+            if let Ok(v) = cdt.insert_with_hint(Point2::new(p[0], p[1]), hint) {
                 if v.index() == fresh {
                     interior.push(p);
                     next.push(fresh);
@@ -699,50 +703,67 @@ fn mesh_once(
         }
         work = Some(next);
     }
-    // 4: relaxation sweeps.
+    // 4: relaxation sweeps. A vertex's target depends on its star only, so
+    // after the first sweep only the vertices next to one that moved (before
+    // or after the move) are looked at again (`None`: all of them).
+    let mut active: Option<Vec<usize>> = None;
     for sweep in 0..options.smoothing {
         poll()?;
         control.report(sweep as f64 / (options.smoothing + 1) as f64);
         let nb = boundary.len();
-        let mut sum = vec![[0.0f64; 3]; interior.len()];
-        // Faces with an inner vertex are inside (the others move nothing).
-        for f in cdt.inner_faces() {
-            if f.vertices().iter().all(|v| v.fix().index() < nb) {
+        let targets: Vec<(usize, [f64; 2])> = match &active {
+            None => {
+                let mut sum = vec![[0.0f64; 3]; interior.len()];
+                // Faces with an inner vertex are inside (the others move nothing).
+                for f in cdt.inner_faces() {
+                    let vs = f.vertices();
+                    if vs.iter().all(|v| v.fix().index() < nb) {
+                        continue;
+                    }
+                    let pos = f.positions();
+                    let w = f.area() / h(centroid(&pos)).powi(2);
+                    let c = f.circumcenter();
+                    for v in vs {
+                        let k = v.fix().index();
+                        if k >= nb {
+                            let e = &mut sum[k - nb];
+                            e[0] += w * c.x;
+                            e[1] += w * c.y;
+                            e[2] += w;
+                        }
+                    }
+                }
+                sum.iter()
+                    .enumerate()
+                    .filter(|(_, e)| e[2] > 0.0)
+                    .map(|(k, e)| (k, [e[0] / e[2], e[1] / e[2]]))
+                    .collect()
+            }
+            Some(list) => list
+                .iter()
+                .filter_map(|&k| {
+                    star_target(&cdt, FixedVertexHandle::from_index(nb + k), &h).map(|q| (k, q))
+                })
+                .collect(),
+        };
+        // The vertices that move by more than 2 % of the local size (inside
+        // a lattice the target is the vertex itself).
+        let mut moves: Vec<(usize, [f64; 2])> = Vec::new();
+        for (k, q) in targets {
+            let p = interior[k];
+            if dist(p, q) <= 0.02 * h(p) {
                 continue;
             }
-            let pos = f.positions();
-            let a = f.area();
-            let rho = 1.0 / h(centroid(&pos)).powi(2);
-            let c = f.circumcenter();
-            for v in f.vertices() {
-                let k = v.fix().index();
-                if k >= nb {
-                    let e = &mut sum[k - nb];
-                    e[0] += a * rho * c.x;
-                    e[1] += a * rho * c.y;
-                    e[2] += a * rho;
-                }
-            }
-        }
-        // Targets of the vertices that move by more than 2 % of the local
-        // size (inside a lattice the target is the vertex itself).
-        let mut moves: Vec<(usize, [f64; 2])> = Vec::new();
-        for (k, (p, e)) in interior.iter().zip(&sum).enumerate() {
-            if e[2] > 0.0 {
-                let q = [e[0] / e[2], e[1] / e[2]];
-                if dist(*p, q) <= 0.02 * h(*p) {
-                    continue;
-                }
-                let v = FixedVertexHandle::from_index(nb + k);
-                if in_star(&cdt, v, q) || admissible(&cdt, &oracle, q, v) {
-                    moves.push((k, q));
-                }
+            let v = FixedVertexHandle::from_index(nb + k);
+            if in_star(&cdt, v, q) || admissible(&cdt, &oracle, q, v) {
+                moves.push((k, q));
             }
         }
         if moves.is_empty() {
             break;
         }
         if moves.len() * 4 > interior.len() {
+            active = None;
             // Many moves: rebuild the triangulation at the new positions.
             let mut moved = interior.clone();
             for &(k, q) in &moves {
@@ -763,13 +784,29 @@ fn mesh_once(
             // insertion appends, so `slot` follows where each vertex went.
             let mut slot: Vec<usize> = (0..interior.len()).collect();
             let mut at: Vec<usize> = (0..interior.len()).collect();
+            // Ids (original slots) of the vertices whose stars change.
+            let mut touched: Vec<usize> = Vec::new();
             for (m, (id, q)) in moves.into_iter().enumerate() {
                 if m % 4096 == 4095 {
                     poll()?;
                 }
                 let (k, last) = (slot[id], interior.len() - 1);
                 let old = interior[k];
-                cdt.remove(FixedVertexHandle::from_index(nb + k));
+                let here = FixedVertexHandle::from_index(nb + k);
+                let mut near = nb + k;
+                for e in cdt.vertex(here).out_edges() {
+                    let j = e.to().fix().index();
+                    near = j;
+                    if j >= nb {
+                        touched.push(at[j - nb]);
+                    }
+                }
+                touched.push(id);
+                cdt.remove(here);
+                // Removal moved the last vertex into the freed index.
+                if near == nb + last {
+                    near = nb + k;
+                }
                 interior.swap_remove(k);
                 if k < last {
                     let other = at[last];
@@ -777,11 +814,12 @@ fn mesh_once(
                     slot[other] = k;
                 }
                 let fresh = nb + interior.len();
-                let placed = match cdt.insert(Point2::new(q[0], q[1])) {
+                let hint = FixedVertexHandle::from_index(near);
+                let placed = match cdt.insert_with_hint(Point2::new(q[0], q[1]), hint) {
                     Ok(v) if v.index() == fresh => q,
                     _ => {
                         // It met a vertex: put it back where it was.
-                        match cdt.insert(Point2::new(old[0], old[1])) {
+                        match cdt.insert_with_hint(Point2::new(old[0], old[1]), hint) {
                             Ok(v) if v.index() == fresh => old,
                             _ => {
                                 return Err(DomainError::Size(
@@ -798,7 +836,17 @@ fn mesh_once(
                     at[last] = id;
                 }
                 slot[id] = last;
+                for e in cdt.vertex(FixedVertexHandle::from_index(fresh)).out_edges() {
+                    let j = e.to().fix().index();
+                    if j >= nb {
+                        touched.push(at[j - nb]);
+                    }
+                }
             }
+            let mut next: Vec<usize> = touched.into_iter().map(|id| slot[id]).collect();
+            next.sort_unstable();
+            next.dedup();
+            active = Some(next);
         }
     }
     poll()?;
@@ -1050,10 +1098,12 @@ fn lattice(
         }
         let x = lo[0] + r as f64 * dy;
         let shift = if r % 2 == 1 { 0.5 * h0 } else { 0.0 };
-        for c in 0..columns {
+        // Rows run alternately left and right: consecutive points are neighbours.
+        for cc in 0..columns {
+            let c = if r % 2 == 1 { columns - 1 - cc } else { cc };
             let p = [x, lo[1] + shift + c as f64 * h0];
             if p[1] > hi[1] {
-                break;
+                continue;
             }
             let at = oracle.cdt.locate_with_hint(Point2::new(p[0], p[1]), hint);
             let inside = match at {
@@ -1087,6 +1137,24 @@ fn segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
         0.0
     };
     dist(p, [a[0] + t * d[0], a[1] + t * d[1]])
+}
+
+/// The optimal-Delaunay target of the inner vertex `v`: the mean of the
+/// circumcentres of its triangles, weighted by area / h² (what the sweep
+/// over all faces computes, from the star alone).
+fn star_target(cdt: &Cdt, v: FixedVertexHandle, h: &impl Fn([f64; 2]) -> f64) -> Option<[f64; 2]> {
+    let mut e = [0.0f64; 3];
+    for edge in cdt.vertex(v).out_edges() {
+        if let Some(f) = edge.face().as_inner() {
+            let pos = f.positions();
+            let w = f.area() / h(centroid(&pos)).powi(2);
+            let c = f.circumcenter();
+            e[0] += w * c.x;
+            e[1] += w * c.y;
+            e[2] += w;
+        }
+    }
+    (e[2] > 0.0).then(|| [e[0] / e[2], e[1] / e[2]])
 }
 
 /// Whether `q` lies in one of the triangles around the inner vertex `v`.
