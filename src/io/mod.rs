@@ -34,10 +34,10 @@
 
 pub mod array;
 pub mod mesh;
+pub mod mesh_picture;
 pub mod nifti;
 pub mod npy;
 pub mod raster;
-pub mod mesh_picture;
 pub mod render;
 pub mod tiff;
 

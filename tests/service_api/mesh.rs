@@ -136,7 +136,14 @@ async fn mesh_upload_distance_download() {
     let bytes = glb.bytes().await.unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).expect("a valid GLB");
     let blob = gltf.blob.as_deref().unwrap();
-    let prim = gltf.document.meshes().next().unwrap().primitives().next().unwrap();
+    let prim = gltf
+        .document
+        .meshes()
+        .next()
+        .unwrap()
+        .primitives()
+        .next()
+        .unwrap();
     let reader = prim.reader(|_| Some(blob));
     assert_eq!(reader.read_positions().unwrap().count(), 642);
     assert_eq!(reader.read_indices().unwrap().into_u32().count(), 3 * 1280);
@@ -147,7 +154,10 @@ async fn mesh_upload_distance_download() {
         .expect("the distance attribute");
     let view = dist.view().unwrap();
     let at = view.offset() + 4 * 5;
-    assert_eq!(f32::from_le_bytes(blob[at..at + 4].try_into().unwrap()), 0.0);
+    assert_eq!(
+        f32::from_le_bytes(blob[at..at + 4].try_into().unwrap()),
+        0.0
+    );
 
     // Voronoi, paths, sampling.
     let v: serde_json::Value = post(

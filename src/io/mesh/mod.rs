@@ -13,11 +13,11 @@
 //! * [`obj`], [`off`], [`stl`], [`ply`]: the readers.
 //! * [`write`]: PLY / OBJ / JSON writers; [`glb`]: glTF binary.
 
+pub mod glb;
 pub mod obj;
 pub mod off;
 pub mod ply;
 pub mod stl;
-pub mod glb;
 pub mod write;
 
 use std::collections::HashSet;
