@@ -307,7 +307,71 @@ pub struct Remesh {
 }
 
 /// Remeshes `mesh`; see the module docs.
+///
+/// The work runs on a copy of `mesh` whose vertices (and faces) are sorted
+/// along a Morton (Z-order) curve of their positions, so that the marches
+/// touch memory in spatial order (the fronts' neighbours are then mostly in
+/// cache: about 2x on an icosphere, whose subdivision order scatters
+/// neighbours); samples are mapped back to the input's vertex ids.
 pub fn remesh(
+    mesh: &TriMesh,
+    options: &RemeshOptions,
+    control: &Control<'_>,
+) -> Result<Remesh, RemeshError> {
+    let (local, old_of_new) = spatially_ordered(mesh);
+    let mut r = remesh_ordered(&local, options, control)?;
+    for s in r.samples.iter_mut() {
+        *s = old_of_new[*s as usize];
+    }
+    Ok(r)
+}
+
+/// `mesh` with its vertices sorted by the Morton code of their position
+/// (21 bits per axis over the bounding box) and its faces by the smallest
+/// new index of their corners (corner order, hence orientation, kept), and
+/// the old id of each new vertex.
+fn spatially_ordered(mesh: &TriMesh) -> (TriMesh, Vec<u32>) {
+    let (lo, hi) = bounds(mesh.positions());
+    let scale: [f64; 3] = std::array::from_fn(|j| {
+        let e = hi[j] - lo[j];
+        if e > 0.0 {
+            ((1u64 << 21) - 1) as f64 / e
+        } else {
+            0.0
+        }
+    });
+    let spread = |x: u64| {
+        // Bits of x (21) to every third bit.
+        let mut x = x & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f00000000ffff;
+        x = (x | x << 16) & 0x1f0000ff0000ff;
+        x = (x | x << 8) & 0x100f00f00f00f00f;
+        x = (x | x << 4) & 0x10c30c30c30c30c3;
+        (x | x << 2) & 0x1249249249249249
+    };
+    let code = |p: [f64; 3]| {
+        let q: [u64; 3] = std::array::from_fn(|j| ((p[j] - lo[j]) * scale[j]) as u64);
+        spread(q[0]) | spread(q[1]) << 1 | spread(q[2]) << 2
+    };
+    let mut order: Vec<u32> = (0..mesh.num_vertices() as u32).collect();
+    let codes: Vec<u64> = mesh.positions().iter().map(|&p| code(p)).collect();
+    order.sort_by_key(|&v| (codes[v as usize], v));
+    let mut new_of_old = vec![0u32; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        new_of_old[old as usize] = new as u32;
+    }
+    let positions: Vec<[f64; 3]> = order.iter().map(|&v| mesh.position(v)).collect();
+    let mut faces: Vec<[u32; 3]> = mesh
+        .faces()
+        .iter()
+        .map(|f| f.map(|v| new_of_old[v as usize]))
+        .collect();
+    faces.sort_by_key(|f| (f[0].min(f[1]).min(f[2]), *f));
+    (TriMesh::from_parts_unchecked(positions, faces), order)
+}
+
+/// [`remesh`] on the mesh as given (samples are its vertex ids).
+fn remesh_ordered(
     mesh: &TriMesh,
     options: &RemeshOptions,
     control: &Control<'_>,
