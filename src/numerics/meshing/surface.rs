@@ -929,11 +929,11 @@ fn curvature_tensors(mesh: &TriMesh, topo: &Topology) -> Vec<[f64; 6]> {
                 let kappa = 2.0 * dot(nv, d) / l2;
                 let (x, y) = (x / lt, y / lt);
                 let row = [x * x, 2.0 * x * y, y * y];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        ata[i][j] += row[i] * row[j];
+                for ((line, rhs), &ri) in ata.iter_mut().zip(atb.iter_mut()).zip(&row) {
+                    for (x, &rj) in line.iter_mut().zip(&row) {
+                        *x += ri * rj;
                     }
-                    atb[i] += row[i] * kappa;
+                    *rhs += ri * kappa;
                 }
                 rows += 1;
             }
@@ -954,8 +954,8 @@ fn curvature_tensors(mesh: &TriMesh, topo: &Topology) -> Vec<[f64; 6]> {
             for &f in topo.faces_of(v as u32) {
                 for &u in &mesh.faces()[f as usize] {
                     if u as usize != v {
-                        for j in 0..6 {
-                            s[j] += raw[u as usize][j];
+                        for (x, &y) in s.iter_mut().zip(&raw[u as usize]) {
+                            *x += y;
                         }
                         count += 1.0;
                     }
@@ -981,8 +981,8 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
     let mut x = [0.0; 3];
     for (k, xk) in x.iter_mut().enumerate() {
         let mut m = a;
-        for i in 0..3 {
-            m[i][k] = b[i];
+        for (line, &bi) in m.iter_mut().zip(&b) {
+            line[k] = bi;
         }
         *xk = det3(m) / d;
     }
@@ -999,8 +999,8 @@ fn anisotropic_face_metric(mesh: &TriMesh, topo: &Topology, max_ratio: f64) -> V
         .map(|face| {
             let mut t = [0.0f64; 6];
             for &v in face {
-                for j in 0..6 {
-                    t[j] += tv[v as usize][j] / 3.0;
+                for (x, &y) in t.iter_mut().zip(&tv[v as usize]) {
+                    *x += y / 3.0;
                 }
             }
             let p0 = mesh.position(face[0]);
