@@ -975,7 +975,8 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
     };
     let d = det3(a);
     let scale = a.iter().flatten().map(|x| x.abs()).fold(0.0f64, f64::max);
-    if !(d.abs() > 1e-12 * scale * scale * scale) {
+    let tiny = 1e-12 * scale * scale * scale;
+    if d.is_nan() || d.abs() <= tiny {
         return None;
     }
     let mut x = [0.0; 3];
