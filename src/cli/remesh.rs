@@ -4,6 +4,7 @@
 //! ```text
 //! geodex remesh --mesh bunny.ply --count 5000 --out remeshed.ply --stats S.json
 //! geodex remesh --mesh part.obj --edge-length 0.5 --adaptation curvature --out part2.obj
+//! geodex remesh --mesh pipe.ply --count 2000 --adaptation anisotropic --max-ratio 4 --out pipe2.ply
 //! ```
 
 use std::path::PathBuf;
@@ -23,6 +24,8 @@ pub enum AdaptationArg {
     Uniform,
     /// Smaller cells where the surface bends.
     Curvature,
+    /// Cells elongated along the directions of low curvature.
+    Anisotropic,
 }
 
 /// Flags of `geodex remesh`.
@@ -43,6 +46,9 @@ pub struct RemeshArgs {
     /// Contrast of the curvature adaptation.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub strength: f64,
+    /// Largest length-to-width ratio of the anisotropic cells.
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+    pub max_ratio: f64,
     /// Geodesic Lloyd iterations.
     #[arg(long, default_value_t = 5)]
     pub lloyd_iterations: usize,
@@ -60,6 +66,7 @@ fn flag_of(field: &str) -> String {
         "count" => "--count".into(),
         "edge_length" => "--edge-length".into(),
         "strength" => "--strength".into(),
+        "max_ratio" => "--max-ratio".into(),
         "lloyd_iterations" => "--lloyd-iterations".into(),
         other => other.to_string(),
     }
@@ -75,8 +82,10 @@ pub fn run(args: &RemeshArgs) -> Result<(), String> {
         adaptation: match args.adaptation {
             AdaptationArg::Uniform => RemeshAdaptationSpec::Uniform,
             AdaptationArg::Curvature => RemeshAdaptationSpec::Curvature,
+            AdaptationArg::Anisotropic => RemeshAdaptationSpec::Anisotropic,
         },
         strength: args.strength,
+        max_ratio: args.max_ratio,
         lloyd_iterations: args.lloyd_iterations,
         hausdorff: true,
     };

@@ -32,6 +32,10 @@ pub enum RemeshAdaptationSpec {
     Uniform,
     /// `W = 1 + strength · κ / mean κ`: smaller cells where the surface bends.
     Curvature,
+    /// A tensor per triangle from the curvature tensor: cells elongated
+    /// along the directions of low curvature, by `sqrt(|κ₁| / |κ₂|)` capped
+    /// at `max_ratio`.
+    Anisotropic,
 }
 
 /// Request of `mesh.remesh` (`POST /v1/mesh/remesh`, `geodex remesh`).
@@ -58,6 +62,11 @@ pub struct MeshRemeshRequest {
     #[serde(default = "two")]
     #[schema(minimum = 0.0)]
     pub strength: f64,
+    /// Largest length-to-width ratio of the cells of the anisotropic
+    /// adaptation (`1 ..= 100`). Default 3.
+    #[serde(default = "three")]
+    #[schema(minimum = 1.0, maximum = 100.0)]
+    pub max_ratio: f64,
     /// Geodesic Lloyd iterations (at most 100). Default 5.
     #[serde(default = "five")]
     #[schema(maximum = 100)]
@@ -69,6 +78,10 @@ pub struct MeshRemeshRequest {
 
 fn two() -> f64 {
     2.0
+}
+
+fn three() -> f64 {
+    3.0
 }
 
 fn five() -> usize {
@@ -105,6 +118,12 @@ impl Operation for MeshRemeshRequest {
         }
         if !(self.strength.is_finite() && self.strength >= 0.0) {
             return Err(OpError::invalid("strength", "must be finite and >= 0"));
+        }
+        if !(self.max_ratio.is_finite() && (1.0..=100.0).contains(&self.max_ratio)) {
+            return Err(OpError::invalid(
+                "max_ratio",
+                "must be finite, >= 1 and <= 100",
+            ));
         }
         if self.lloyd_iterations > 100 {
             return Err(OpError::invalid("lloyd_iterations", "must be <= 100"));
@@ -171,6 +190,9 @@ impl Operation for MeshRemeshRequest {
             RemeshAdaptationSpec::Uniform => Adaptation::Uniform,
             RemeshAdaptationSpec::Curvature => Adaptation::Curvature {
                 strength: self.strength,
+            },
+            RemeshAdaptationSpec::Anisotropic => Adaptation::Anisotropic {
+                max_ratio: self.max_ratio,
             },
         };
         let started = Instant::now();

@@ -317,4 +317,25 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
     )
     .await;
     assert!(p.to_string().contains("count"), "{p}");
+    // The anisotropic adaptation runs, and a ratio below 1 is refused naming it.
+    let res = post(
+        &app,
+        "/v1/mesh/remesh",
+        json!({"mesh": id, "count": 400, "adaptation": "anisotropic", "max_ratio": 2.0}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let v: serde_json::Value = res.json().await.unwrap();
+    assert_eq!(v["stats"]["valid"], true, "{v}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/remesh",
+            json!({"mesh": id, "count": 400, "adaptation": "anisotropic", "max_ratio": 0.5}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("max_ratio"), "{p}");
 }

@@ -22,8 +22,24 @@
 //!
 //! **Weights.** `W` is per vertex; a triangle update uses the mean of its
 //! corners' weights (weighted geodesics, `W = 1` the geodesic distance).
+//!
+//! **Face tensors (anisotropic metric).** With [`Metric::Faces`] each face
+//! `f` carries a symmetric positive tensor `M_f` of its plane (stored as a
+//! 3×3 tensor of space acting on the face's vectors), and lengths in `f`
+//! are `|x|_M = sqrt(xᵀ M_f x)`: the equation is `∇uᵀ M_f⁻¹ ∇u = 1`. In
+//! the face's coordinates transformed by `M_f^{1/2}` this is the isotropic
+//! equation, and the Gram matrix of the transformed edges is
+//! `G_M = [eᵢᵀ M_f eⱼ]`, so the update above applies unchanged with `G_M`
+//! in place of `G` and `W = 1` (edge updates `u(A) + |CA|_M`). Limits: the
+//! scheme is monotone (hence convergent) only where the transformed
+//! triangle is not obtuse at `C`; the unfolding of obtuse corners is done
+//! in the Euclidean metric and is not used under face tensors, so strongly
+//! anisotropic tensors on triangles not aligned with their eigenvectors
+//! give a first-order, possibly non-monotone approximation (bounded
+//! anisotropy keeps it usable; the distance is still an upper bound made
+//! of edge and in-triangle paths whose `M`-lengths are exact).
 
-use super::sources::{check_weights, seeds, Seed, VertexGraph};
+use super::sources::{check_weights, seeds, Seed};
 use super::{dot, norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh, NONE};
 use crate::numerics::heap::IndexedHeap;
 use crate::numerics::Control;
@@ -49,12 +65,11 @@ impl Default for FastMarchingOptions<'_> {
 /// Unfolding depth limit for obtuse corners.
 const MAX_UNFOLD: usize = 12;
 
-/// Per-mesh tables of the fast marching: the one-ring graph and the virtual
+/// Per-mesh tables of the fast marching: the vertex-face incidence and the virtual
 /// vertices of obtuse corners. Build once, march many times (farthest-point
 /// sampling).
 #[derive(Debug, Clone)]
 pub struct MarchPrep {
-    graph: VertexGraph,
     /// Vertex -> faces (copied from the topology, CSR).
     vf_offsets: Vec<u32>,
     vf: Vec<u32>,
@@ -111,7 +126,6 @@ impl MarchPrep {
             dep_offsets[v + 1] += dep_offsets[v];
         }
         Self {
-            graph: VertexGraph::new(mesh),
             vf_offsets: topo.vertex_face_offsets.clone(),
             vf: topo.vertex_faces.clone(),
             corner_virtual,
@@ -245,11 +259,84 @@ pub fn fast_marching_distance(
     Ok(out)
 }
 
+/// Reusable state of [`march_with`]: the march's own values, labels and
+/// frozen flags, its heap, and the list of vertices it touched, so that a
+/// march costs `O(m log m)` in the `m` vertices it visits rather than
+/// `O(n)` for the arrays of the whole mesh (farthest-point sampling runs
+/// thousands of small local fronts on one mesh).
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::mesh::fast_marching::{march_with, MarchPrep, MarchWork};
+/// use geodex::numerics::mesh::shapes::icosphere;
+/// use geodex::numerics::mesh::sources::Seed;
+/// use geodex::numerics::mesh::{MeshDistance, Topology};
+/// use geodex::numerics::Control;
+/// let mesh = icosphere(2, 1.0);
+/// let prep = MarchPrep::new(&mesh, &Topology::new(&mesh));
+/// let n = mesh.num_vertices();
+/// let mut out = MeshDistance { distance: vec![f64::INFINITY; n], labels: vec![-1; n] };
+/// let mut work = MarchWork::new(n);
+/// for (label, vertex) in [(0, 0u32), (1, 5)] {
+///     let seed = Seed { vertex, distance: 0.0, label };
+///     march_with(&mut work, &mesh, &prep, &[seed], None, f64::INFINITY, &mut out, &Control::new())?;
+///     // `work.changed()` lists the vertices whose distance this march lowered.
+///     assert!(work.changed().contains(&vertex));
+/// }
+/// assert!(out.distance.iter().all(|d| d.is_finite()));
+/// # Ok::<(), geodex::numerics::mesh::MeshSolveError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct MarchWork {
+    u: Vec<f64>,
+    lab: Vec<i32>,
+    frozen: Vec<bool>,
+    heap: IndexedHeap,
+    /// Vertices whose `u` was set by the last march (to reset).
+    touched: Vec<u32>,
+    /// Vertices frozen by the last march (their `out` entries changed).
+    changed: Vec<u32>,
+}
+
+impl MarchWork {
+    /// State for marches over a mesh of `n` vertices (allocated once).
+    pub fn new(n: usize) -> Self {
+        Self {
+            u: vec![f64::INFINITY; n],
+            lab: vec![-1; n],
+            frozen: vec![false; n],
+            heap: IndexedHeap::new(n),
+            touched: Vec::new(),
+            changed: Vec::new(),
+        }
+    }
+
+    /// The vertices whose distance and label the last march wrote, in the
+    /// order it froze them.
+    pub fn changed(&self) -> &[u32] {
+        &self.changed
+    }
+
+    /// Back to the untouched state in `O(touched)`.
+    fn reset(&mut self) {
+        for &v in &self.touched {
+            let v = v as usize;
+            self.u[v] = f64::INFINITY;
+            self.lab[v] = -1;
+            self.frozen[v] = false;
+        }
+        self.touched.clear();
+        self.changed.clear();
+        self.heap.clear();
+    }
+}
+
 /// One march from `seeds` that only lowers `out`: a vertex is updated only
 /// where the new value is below its current one, so with `out` holding the
 /// distances to earlier sources this is the incremental update of
 /// farthest-point sampling (the front stops at the Voronoi boundary).
-/// Returns the number of vertices frozen.
+/// Returns the number of vertices frozen. Allocates `O(n)`; a caller that
+/// marches many times uses [`march_with`] and one [`MarchWork`].
 pub fn march(
     mesh: &TriMesh,
     prep: &MarchPrep,
@@ -259,23 +346,108 @@ pub fn march(
     out: &mut MeshDistance,
     control: &Control<'_>,
 ) -> Result<usize, MeshSolveError> {
+    let mut work = MarchWork::new(mesh.num_vertices());
+    march_with(
+        &mut work,
+        mesh,
+        prep,
+        seeds,
+        weights,
+        max_distance,
+        out,
+        control,
+    )
+}
+
+/// The metric of a march.
+#[derive(Debug, Clone, Copy)]
+pub enum Metric<'a> {
+    /// Per-vertex weights `W > 0` (`None`: 1), see the module docs.
+    Weights(Option<&'a [f64]>),
+    /// One symmetric tensor per face, `[xx, xy, xz, yy, yz, zz]`, positive
+    /// on the face's plane (see the module docs).
+    Faces(&'a [[f64; 6]]),
+}
+
+/// `xᵀ M y` for the symmetric `M = [xx, xy, xz, yy, yz, zz]`.
+#[inline(always)]
+pub fn tensor_form(m: &[f64; 6], x: [f64; 3], y: [f64; 3]) -> f64 {
+    let mx = [
+        m[0] * x[0] + m[1] * x[1] + m[2] * x[2],
+        m[1] * x[0] + m[3] * x[1] + m[4] * x[2],
+        m[2] * x[0] + m[4] * x[1] + m[5] * x[2],
+    ];
+    dot(mx, y)
+}
+
+/// [`march`] on reusable state: the cost is that of the vertices the front
+/// visits (plus their neighbours), not of the mesh. `work` must have been
+/// made for this mesh's vertex count.
+#[allow(clippy::too_many_arguments)]
+pub fn march_with(
+    work: &mut MarchWork,
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    seeds: &[Seed],
+    weights: Option<&[f64]>,
+    max_distance: f64,
+    out: &mut MeshDistance,
+    control: &Control<'_>,
+) -> Result<usize, MeshSolveError> {
+    march_metric(
+        work,
+        mesh,
+        prep,
+        seeds,
+        Metric::Weights(weights),
+        max_distance,
+        out,
+        control,
+    )
+}
+
+/// [`march_with`] under any [`Metric`] (face tensors: one per face of `mesh`).
+#[allow(clippy::too_many_arguments)]
+pub fn march_metric(
+    work: &mut MarchWork,
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    seeds: &[Seed],
+    metric: Metric<'_>,
+    max_distance: f64,
+    out: &mut MeshDistance,
+    control: &Control<'_>,
+) -> Result<usize, MeshSolveError> {
     let n = mesh.num_vertices();
-    // Values of this march (the frozen ones are final).
-    let mut u = vec![f64::INFINITY; n];
-    let mut lab = vec![-1i32; n];
-    let mut frozen = vec![false; n];
-    let mut heap = IndexedHeap::new(n);
+    if work.u.len() != n {
+        *work = MarchWork::new(n);
+    }
+    work.reset();
+    let MarchWork {
+        u,
+        lab,
+        frozen,
+        heap,
+        touched,
+        changed,
+    } = work;
     for s in seeds {
         let v = s.vertex as usize;
-        if s.distance < out.distance[v] && s.distance <= max_distance {
+        if s.distance < out.distance[v] && s.distance <= max_distance && s.distance < u[v] {
+            if u[v] == f64::INFINITY {
+                touched.push(s.vertex);
+            }
             u[v] = s.distance;
             lab[v] = s.label;
             heap.push_or_decrease(s.vertex, s.distance);
         }
     }
+    let (weights, tensors) = match metric {
+        Metric::Weights(w) => (w, None),
+        Metric::Faces(t) => (None, Some(t)),
+    };
     let wt = |v: u32| weights.map_or(1.0, |w| w[v as usize]);
     let mut count = 0usize;
-    let mut todo: Vec<u32> = Vec::with_capacity(32);
     while let Some((v, d)) = heap.pop() {
         if d > max_distance {
             break;
@@ -283,6 +455,7 @@ pub fn march(
         frozen[v as usize] = true;
         out.distance[v as usize] = d;
         out.labels[v as usize] = lab[v as usize];
+        changed.push(v);
         count += 1;
         if count.is_multiple_of(4096) {
             if control.is_cancelled() {
@@ -290,19 +463,47 @@ pub fn march(
             }
             control.report(count as f64 / n as f64);
         }
-        todo.clear();
-        todo.extend_from_slice(prep.graph.of(v));
+        // Each unfrozen corner `c` of a face of `v` is updated from that face
+        // only: the candidates of `c`'s other faces have not changed since
+        // one of their corners froze (`u` keeps the running minimum, which
+        // is the minimum over all faces); the corners that use `v` as a
+        // virtual vertex are updated from all their faces.
+        for &f in topo_faces(mesh, prep, v) {
+            let face = mesh.faces()[f as usize];
+            for (k, &c) in face.iter().enumerate() {
+                if c == v || frozen[c as usize] {
+                    continue;
+                }
+                let (val, l) = match tensors {
+                    Some(t) => pull_face_tensor(mesh, f, k, u, lab, frozen, t),
+                    None => pull_face(mesh, prep, f, k, u, lab, frozen, &wt, weights.is_some()),
+                };
+                if val < u[c as usize] && val < out.distance[c as usize] {
+                    if u[c as usize] == f64::INFINITY {
+                        touched.push(c);
+                    }
+                    u[c as usize] = val;
+                    lab[c as usize] = l;
+                    heap.push_or_decrease(c, val);
+                }
+            }
+        }
         let (a, b) = (
             prep.dep_offsets[v as usize] as usize,
             prep.dep_offsets[v as usize + 1] as usize,
         );
-        todo.extend_from_slice(&prep.deps[a..b]);
-        for &c in &todo {
+        for &c in &prep.deps[a..b] {
             if frozen[c as usize] {
                 continue;
             }
-            let (val, l) = pull(mesh, prep, c, &u, &lab, &frozen, &wt, weights.is_some());
+            let (val, l) = match tensors {
+                Some(t) => pull_tensor(mesh, prep, c, u, lab, frozen, t),
+                None => pull(mesh, prep, c, u, lab, frozen, &wt, weights.is_some()),
+            };
             if val < u[c as usize] && val < out.distance[c as usize] {
+                if u[c as usize] == f64::INFINITY {
+                    touched.push(c);
+                }
                 u[c as usize] = val;
                 lab[c as usize] = l;
                 heap.push_or_decrease(c, val);
@@ -312,7 +513,7 @@ pub fn march(
     Ok(count)
 }
 
-/// The best value of `c` from its frozen neighbours over all incident faces.
+/// The best value of `c` from its frozen neighbours over all its faces.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn pull(
@@ -326,84 +527,181 @@ fn pull(
     weighted: bool,
 ) -> (f64, i32) {
     let mut best = (f64::INFINITY, -1);
-    let pc = mesh.position(c);
-    let wc = wt(c);
     let faces = mesh.faces();
-    let mut consider = |val: f64, l: i32| {
-        if val < best.0 {
-            best = (val, l);
-        }
-    };
     for &f in topo_faces(mesh, prep, c) {
         let face = faces[f as usize];
         let Some(k) = face.iter().position(|&x| x == c) else {
             continue;
         };
-        let (ia, ib) = (face[(k + 1) % 3], face[(k + 2) % 3]);
-        let (fa, fb) = (frozen[ia as usize], frozen[ib as usize]);
-        if !fa && !fb {
-            continue;
+        let val = pull_face(mesh, prep, f, k, u, lab, frozen, wt, weighted);
+        if val.0 < best.0 {
+            best = val;
         }
-        let e1 = sub(mesh.position(ia), pc);
-        let e2 = sub(mesh.position(ib), pc);
-        let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
-        let w_ab = if weighted {
-            (wc + wt(ia) + wt(ib)) / 3.0
+    }
+    best
+}
+
+/// The best value of corner `k` of face `f` from the face's frozen corners
+/// (edges, the triangle, and the virtual triangles of an obtuse corner).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn pull_face(
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    f: u32,
+    k: usize,
+    u: &[f64],
+    lab: &[i32],
+    frozen: &[bool],
+    wt: &impl Fn(u32) -> f64,
+    weighted: bool,
+) -> (f64, i32) {
+    let mut best = (f64::INFINITY, -1);
+    let mut consider = |val: f64, l: i32| {
+        if val < best.0 {
+            best = (val, l);
+        }
+    };
+    let face = mesh.faces()[f as usize];
+    let c = face[k];
+    let (ia, ib) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+    let (fa, fb) = (frozen[ia as usize], frozen[ib as usize]);
+    if !fa && !fb {
+        return best;
+    }
+    let pc = mesh.position(c);
+    let wc = wt(c);
+    let e1 = sub(mesh.position(ia), pc);
+    let e2 = sub(mesh.position(ib), pc);
+    let (g11, g12, g22) = (dot(e1, e1), dot(e1, e2), dot(e2, e2));
+    let w_ab = if weighted {
+        (wc + wt(ia) + wt(ib)) / 3.0
+    } else {
+        1.0
+    };
+    let near = |x: u32, y: u32| {
+        if u[x as usize] <= u[y as usize] {
+            lab[x as usize]
         } else {
-            1.0
-        };
-        let near = |x: u32, y: u32| {
-            if u[x as usize] <= u[y as usize] {
-                lab[x as usize]
+            lab[y as usize]
+        }
+    };
+    if fa {
+        consider(
+            u[ia as usize] + 0.5 * (wc + wt(ia)) * g11.sqrt(),
+            lab[ia as usize],
+        );
+    }
+    if fb {
+        consider(
+            u[ib as usize] + 0.5 * (wc + wt(ib)) * g22.sqrt(),
+            lab[ib as usize],
+        );
+    }
+    if fa && fb {
+        if let Some(val) = tri_update(g11, g12, g22, u[ia as usize], u[ib as usize], w_ab) {
+            consider(val, near(ia, ib));
+        }
+    }
+    let slot = prep.corner_virtual[3 * f as usize + k];
+    if slot != NONE {
+        let (iv, p) = prep.virtuals[slot as usize];
+        if frozen[iv as usize] {
+            let (a2, b2) = local_frame(mesh, f as usize, k);
+            let gvv = p[0] * p[0] + p[1] * p[1];
+            let wv = if weighted {
+                (wc + wt(ia) + wt(ib) + wt(iv)) / 4.0
             } else {
-                lab[y as usize]
+                1.0
+            };
+            consider(u[iv as usize] + wv * gvv.sqrt(), lab[iv as usize]);
+            if fa {
+                let g12v = a2[0] * p[0] + a2[1] * p[1];
+                if let Some(val) = tri_update(g11, g12v, gvv, u[ia as usize], u[iv as usize], wv) {
+                    consider(val, near(ia, iv));
+                }
             }
+            if fb {
+                let g12v = b2[0] * p[0] + b2[1] * p[1];
+                if let Some(val) = tri_update(gvv, g12v, g22, u[iv as usize], u[ib as usize], wv) {
+                    consider(val, near(iv, ib));
+                }
+            }
+        }
+    }
+    best
+}
+
+/// [`pull`] under face tensors.
+#[inline]
+fn pull_tensor(
+    mesh: &TriMesh,
+    prep: &MarchPrep,
+    c: u32,
+    u: &[f64],
+    lab: &[i32],
+    frozen: &[bool],
+    tensors: &[[f64; 6]],
+) -> (f64, i32) {
+    let mut best = (f64::INFINITY, -1);
+    let faces = mesh.faces();
+    for &f in topo_faces(mesh, prep, c) {
+        let face = faces[f as usize];
+        let Some(k) = face.iter().position(|&x| x == c) else {
+            continue;
         };
-        if fa {
-            consider(
-                u[ia as usize] + 0.5 * (wc + wt(ia)) * g11.sqrt(),
-                lab[ia as usize],
-            );
+        let val = pull_face_tensor(mesh, f, k, u, lab, frozen, tensors);
+        if val.0 < best.0 {
+            best = val;
         }
-        if fb {
-            consider(
-                u[ib as usize] + 0.5 * (wc + wt(ib)) * g22.sqrt(),
-                lab[ib as usize],
-            );
-        }
-        if fa && fb {
-            if let Some(val) = tri_update(g11, g12, g22, u[ia as usize], u[ib as usize], w_ab) {
-                consider(val, near(ia, ib));
-            }
-        }
-        let slot = prep.corner_virtual[3 * f as usize + k];
-        if slot != NONE {
-            let (iv, p) = prep.virtuals[slot as usize];
-            if frozen[iv as usize] {
-                let (a2, b2) = local_frame(mesh, f as usize, k);
-                let gvv = p[0] * p[0] + p[1] * p[1];
-                let wv = if weighted {
-                    (wc + wt(ia) + wt(ib) + wt(iv)) / 4.0
+    }
+    best
+}
+
+/// [`pull_face`] under face tensors: the update in the `M_f` Gram matrix,
+/// no virtual vertices (see the module docs).
+#[inline]
+fn pull_face_tensor(
+    mesh: &TriMesh,
+    f: u32,
+    k: usize,
+    u: &[f64],
+    lab: &[i32],
+    frozen: &[bool],
+    tensors: &[[f64; 6]],
+) -> (f64, i32) {
+    let mut best = (f64::INFINITY, -1);
+    let face = mesh.faces()[f as usize];
+    let (ia, ib) = (face[(k + 1) % 3], face[(k + 2) % 3]);
+    let (fa, fb) = (frozen[ia as usize], frozen[ib as usize]);
+    if !fa && !fb {
+        return best;
+    }
+    let pc = mesh.position(face[k]);
+    let m = &tensors[f as usize];
+    let e1 = sub(mesh.position(ia), pc);
+    let e2 = sub(mesh.position(ib), pc);
+    let (g11, g12, g22) = (
+        tensor_form(m, e1, e1).max(0.0),
+        tensor_form(m, e1, e2),
+        tensor_form(m, e2, e2).max(0.0),
+    );
+    let (ua, ub) = (u[ia as usize], u[ib as usize]);
+    if fa && ua + g11.sqrt() < best.0 {
+        best = (ua + g11.sqrt(), lab[ia as usize]);
+    }
+    if fb && ub + g22.sqrt() < best.0 {
+        best = (ub + g22.sqrt(), lab[ib as usize]);
+    }
+    if fa && fb {
+        if let Some(val) = tri_update(g11, g12, g22, ua, ub, 1.0) {
+            if val < best.0 {
+                let l = if ua <= ub {
+                    lab[ia as usize]
                 } else {
-                    1.0
+                    lab[ib as usize]
                 };
-                consider(u[iv as usize] + wv * gvv.sqrt(), lab[iv as usize]);
-                if fa {
-                    let g12v = a2[0] * p[0] + a2[1] * p[1];
-                    if let Some(val) =
-                        tri_update(g11, g12v, gvv, u[ia as usize], u[iv as usize], wv)
-                    {
-                        consider(val, near(ia, iv));
-                    }
-                }
-                if fb {
-                    let g12v = b2[0] * p[0] + b2[1] * p[1];
-                    if let Some(val) =
-                        tri_update(gvv, g12v, g22, u[iv as usize], u[ib as usize], wv)
-                    {
-                        consider(val, near(iv, ib));
-                    }
-                }
+                best = (val, l);
             }
         }
     }

@@ -10,7 +10,10 @@
 //! full solves. With the heat method (or the exact method) each sample is a
 //! full solve merged by minimum.
 
-use super::fast_marching::{march, MarchPrep};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use super::fast_marching::{march_with, MarchPrep, MarchWork};
 use super::heat::HeatSolver;
 use super::solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
 use super::sources::{seeds, VertexGraph};
@@ -108,12 +111,20 @@ pub fn farthest_point_sampling(
     };
     let prep =
         matches!(options.method, MeshMethod::FastMarching).then(|| MarchPrep::new(mesh, topo));
-    let graph = matches!(options.method, MeshMethod::Dijkstra).then(|| VertexGraph::new(mesh));
+    let graph = matches!(
+        options.method,
+        MeshMethod::Dijkstra | MeshMethod::FastMarching
+    )
+    .then(|| VertexGraph::new(mesh));
     // Each per-sample solve polls the caller's flags (deadline, client gone,
     // job cancel); progress is reported per sample below.
     let inner = control.cancel_only();
     let mut samples = Vec::new();
     let mut next = first;
+    let mut work = prep.as_ref().map(|_| MarchWork::new(n));
+    let mut dheap = graph.as_ref().map(|_| IndexedHeap::new(n));
+    let mut queue = FarthestQueue::new(&field.distance);
+    let mut changed: Vec<u32> = Vec::new();
     loop {
         if control.is_cancelled() {
             return Err(MeshSolveError::Cancelled);
@@ -125,9 +136,27 @@ pub fn farthest_point_sampling(
             (Some(prep), _) => {
                 let mut s = seeds(mesh, &src, None)?;
                 s[0].label = label;
-                march(mesh, prep, &s, None, f64::INFINITY, &mut field, &inner)?;
+                if let (Some(work), Some(graph)) = (work.as_mut(), graph.as_ref()) {
+                    march_with(
+                        work,
+                        mesh,
+                        prep,
+                        &s,
+                        None,
+                        f64::INFINITY,
+                        &mut field,
+                        &inner,
+                    )?;
+                    queue.lowered_on(graph, work.changed(), &field.distance);
+                }
             }
-            (_, Some(graph)) => local_dijkstra(mesh, graph, next, label, &mut field),
+            (_, Some(graph)) => {
+                if let Some(heap) = dheap.as_mut() {
+                    changed.clear();
+                    local_dijkstra(mesh, graph, heap, next, label, &mut field, &mut changed);
+                    queue.lowered_on(graph, &changed, &field.distance);
+                }
+            }
             _ => {
                 let d = mesh_distance(
                     mesh,
@@ -140,16 +169,19 @@ pub fn farthest_point_sampling(
                     heat,
                     &inner,
                 )?;
+                changed.clear();
                 for v in 0..n {
                     if d.distance[v] < field.distance[v] {
                         field.distance[v] = d.distance[v];
                         field.labels[v] = label;
+                        changed.push(v as u32);
                     }
                 }
+                queue.lowered(&changed, &field.distance);
             }
         }
         control.report(samples.len() as f64 / cap as f64);
-        let Some((v, d)) = argmax(&field.distance) else {
+        let Some((v, d)) = queue.farthest(&field.distance) else {
             break;
         };
         if samples.len() >= cap || options.radius.is_some_and(|r| d <= r) || d <= 0.0 {
@@ -170,7 +202,7 @@ pub fn farthest_point_sampling(
 }
 
 /// The vertex with the largest distance (`+inf` first: unreached components
-/// are sampled before anything else).
+/// are sampled before anything else; the lowest index among equals).
 fn argmax(d: &[f64]) -> Option<(u32, f64)> {
     let mut best: Option<(u32, f64)> = None;
     for (v, &x) in d.iter().enumerate() {
@@ -181,10 +213,149 @@ fn argmax(d: &[f64]) -> Option<(u32, f64)> {
     best
 }
 
-fn local_dijkstra(mesh: &TriMesh, graph: &VertexGraph, s: u32, label: i32, f: &mut MeshDistance) {
-    let mut heap = IndexedHeap::new(mesh.num_vertices());
+/// The bits of `d` as an integer with the order of `d` (IEEE 754 total order).
+#[inline]
+fn ordered(d: f64) -> i64 {
+    let b = d.to_bits() as i64;
+    b ^ (((b >> 63) as u64) >> 1) as i64
+}
+
+/// The farthest vertex of a distance field whose entries only decrease: a
+/// lazy max-heap of `(distance, vertex)` in which a lowered vertex is pushed
+/// again and an entry is dropped when popped if it no longer matches the
+/// field. The answer is that of a scan (the largest distance,
+/// `+inf` first, the lowest index among equals), in `O(log n)` amortised
+/// per lowered vertex instead of `O(n)` per query.
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::mesh::sampling::FarthestQueue;
+/// let mut d = vec![f64::INFINITY; 4];
+/// let mut q = FarthestQueue::new(&d);
+/// assert_eq!(q.farthest(&d), Some((0, f64::INFINITY)));
+/// d[0] = 0.0;
+/// d[1] = 2.0;
+/// d[2] = 3.0;
+/// d[3] = 3.0;
+/// q.lowered(&[0, 1, 2, 3], &d);
+/// assert_eq!(q.farthest(&d), Some((2, 3.0)));
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct FarthestQueue {
+    heap: BinaryHeap<(i64, Reverse<u32>)>,
+    /// Per-vertex stamp of [`FarthestQueue::lowered_on`] (tested this round).
+    seen: Vec<u32>,
+    round: u32,
+    /// Vertex count (the heap is rebuilt when it holds twice as many
+    /// entries: a smaller heap stays in cache, and a rebuild drops the stale
+    /// entries without popping them one by one).
+    n: usize,
+}
+
+impl FarthestQueue {
+    /// A queue over every non-NaN entry of `distance`.
+    pub fn new(distance: &[f64]) -> Self {
+        let mut q = Self {
+            heap: BinaryHeap::new(),
+            seen: Vec::new(),
+            round: 0,
+            n: distance.len(),
+        };
+        q.rebuild(distance);
+        q
+    }
+
+    fn rebuild(&mut self, distance: &[f64]) {
+        let entries: Vec<(i64, Reverse<u32>)> = distance
+            .iter()
+            .enumerate()
+            .filter(|(_, x)| !x.is_nan())
+            .map(|(v, &x)| (ordered(x), Reverse(v as u32)))
+            .collect();
+        self.heap = BinaryHeap::from(entries);
+    }
+
+    /// Records that the entries of `vertices` in `distance` were lowered.
+    pub fn lowered(&mut self, vertices: &[u32], distance: &[f64]) {
+        if self.heap.len() + vertices.len() > 2 * self.n.max(16) {
+            self.rebuild(distance);
+            return;
+        }
+        for &v in vertices {
+            let x = distance[v as usize];
+            if !x.is_nan() {
+                self.heap.push((ordered(x), Reverse(v)));
+            }
+        }
+    }
+
+    /// [`FarthestQueue::lowered`] on a mesh, pushing only the vertices that
+    /// may have become weak local maxima of `distance` over `graph` (the
+    /// lowered ones and their neighbours, each kept if no neighbour is
+    /// larger): the largest entry is a weak local maximum, and a vertex
+    /// becomes one only when it or a neighbour is lowered, so the answer is
+    /// unchanged while the heap holds a few entries per front instead of
+    /// every vertex the front lowered.
+    pub fn lowered_on(&mut self, graph: &VertexGraph, vertices: &[u32], distance: &[f64]) {
+        if self.seen.len() != distance.len() {
+            self.seen = vec![0; distance.len()];
+            self.round = 0;
+        }
+        self.round = self.round.wrapping_add(1);
+        if self.round == 0 {
+            self.seen.fill(0);
+            self.round = 1;
+        }
+        let round = self.round;
+        let local_max = |v: u32| {
+            let x = distance[v as usize];
+            graph.of(v).iter().all(|&u| distance[u as usize] <= x)
+        };
+        let mut pushed = 0usize;
+        for &v in vertices {
+            for &w in std::iter::once(&v).chain(graph.of(v)) {
+                if self.seen[w as usize] == round {
+                    continue;
+                }
+                self.seen[w as usize] = round;
+                let x = distance[w as usize];
+                if !x.is_nan() && local_max(w) {
+                    self.heap.push((ordered(x), Reverse(w)));
+                    pushed += 1;
+                }
+            }
+        }
+        if self.heap.len() > 2 * self.n.max(16) && pushed > 0 {
+            self.rebuild(distance);
+        }
+    }
+
+    /// The vertex with the largest entry of `distance` and that entry.
+    pub fn farthest(&mut self, distance: &[f64]) -> Option<(u32, f64)> {
+        while let Some(&(key, Reverse(v))) = self.heap.peek() {
+            let x = distance[v as usize];
+            if ordered(x) == key {
+                return Some((v, x));
+            }
+            self.heap.pop();
+        }
+        None
+    }
+}
+
+fn local_dijkstra(
+    mesh: &TriMesh,
+    graph: &VertexGraph,
+    heap: &mut IndexedHeap,
+    s: u32,
+    label: i32,
+    f: &mut MeshDistance,
+    changed: &mut Vec<u32>,
+) {
+    heap.clear();
     f.distance[s as usize] = 0.0;
     f.labels[s as usize] = label;
+    changed.push(s);
     heap.push(s, 0.0);
     while let Some((v, d)) = heap.pop() {
         let pv = mesh.position(v);
@@ -193,6 +364,7 @@ fn local_dijkstra(mesh: &TriMesh, graph: &VertexGraph, s: u32, label: i32, f: &m
             if c < f.distance[u as usize] {
                 f.distance[u as usize] = c;
                 f.labels[u as usize] = label;
+                changed.push(u);
                 heap.push_or_decrease(u, c);
             }
         }
@@ -205,6 +377,29 @@ mod tests {
     use crate::numerics::mesh::shapes::icosphere;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
+
+    /// The queue answers like a scan after arbitrary decreases.
+    #[test]
+    fn farthest_queue_matches_a_scan() {
+        let n = 500;
+        let mut d = vec![f64::INFINITY; n];
+        let mut q = FarthestQueue::new(&d);
+        let mut state = 12345u64;
+        for step in 0..5000 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let v = (state >> 33) as usize % n;
+            let x = ((state >> 13) % 1000) as f64 / 10.0;
+            if x < d[v] {
+                d[v] = x;
+                q.lowered(&[v as u32], &d);
+            }
+            if step % 7 == 0 {
+                assert_eq!(q.farthest(&d), argmax(&d), "step {step}");
+            }
+        }
+    }
 
     /// One sample (`count: 1`, first given) runs exactly one per-sample solve
     /// and then stops without polling again: the run can only end in

@@ -18,6 +18,35 @@
 //! normal curvature along the edges of `v` (`n_v` the area-weighted vertex
 //! normal), averaged once over the one-ring.
 //!
+//! **Anisotropic metric.** [`Adaptation::Anisotropic`] measures lengths in
+//! face `f` by `sqrt(xᵀ M_f x)` with a tensor of the face's plane built from
+//! the curvature tensor. At each vertex the second fundamental form
+//! `II = [[a, b], [b, c]]` in a tangent frame `(t₁, t₂)` is fitted by least
+//! squares to the normal curvatures along the edges,
+//! `κ_e = 2 n·d / |d|²` in the direction `(x, y)` of the tangent part of `d`:
+//! `min Σ_e (a x² + 2 b x y + c y² − κ_e)²`. Its eigenvalues are the
+//! principal curvatures `κ₁, κ₂` with directions `r₁, r₂`, and
+//! `|II| = |κ₁| r₁r₁ᵀ + |κ₂| r₂r₂ᵀ` (as a tensor of space) is averaged once
+//! over the one-ring. A face averages its corners' `|II|`, projects it onto
+//! its plane (`P |II| P`, `P = I − n nᵀ`) and takes the eigenvalues
+//! `μ₁ >= μ₂` of that 2×2 tensor with directions `q₁, q₂`; then
+//!
+//! ```text
+//! M_f = m₁ q₁q₁ᵀ + m₂ q₂q₂ᵀ,   m₁ = max(μ₁, ε),   m₂ = max(μ₂, ε, m₁ / ρ²)
+//! ```
+//!
+//! with `ε = mean(μ₁) / 100` (flat parts get isotropic cells ten times
+//! the size of those of the mean curvature) and `ρ` = `max_ratio`. A unit
+//! ball of `M_f` has radius `1/sqrt(m)` along each eigendirection, so the
+//! cells are `sqrt(m₁/m₂) <= ρ` times longer along the direction of low
+//! curvature than across it: `|II|` is the metric under which the linear
+//! interpolation error of the surface is equidistributed. On a cylinder
+//! of radius `R`, `κ₁ = 1/R` around and `κ₂ = 0` along the axis: cells
+//! `ρ` times longer along the axis. Distances under `M_f` are computed by
+//! the fast marching with face tensors (`numerics::mesh::fast_marching`,
+//! the update in the `M_f^{1/2}`-transformed triangle; its limits are
+//! documented there).
+//!
 //! **Lloyd (centroidal relaxation).** With `V_i` the geodesic Voronoi cell of
 //! sample `s_i` and `A_v` the lumped area of vertex `v` (a third of the
 //! areas of its faces), the energy is
@@ -54,8 +83,9 @@
 use std::collections::HashMap;
 
 use crate::numerics::control::Control;
-use crate::numerics::mesh::fast_marching::{march, MarchPrep};
-use crate::numerics::mesh::sources::Seed;
+use crate::numerics::mesh::fast_marching::{march_metric, MarchPrep, MarchWork, Metric};
+use crate::numerics::mesh::sampling::FarthestQueue;
+use crate::numerics::mesh::sources::{Seed, VertexGraph};
 use crate::numerics::mesh::{
     cross, dot, norm, sub, MeshDistance, MeshSolveError, Topology, TriMesh,
 };
@@ -69,6 +99,13 @@ pub enum Adaptation {
     Curvature {
         /// `λ >= 0`.
         strength: f64,
+    },
+    /// A tensor per face from the curvature tensor (see the module docs):
+    /// cells elongated along the directions of low curvature, by
+    /// `sqrt(|κ₁| / |κ₂|)` capped at `max_ratio`.
+    Anisotropic {
+        /// Largest ratio of a cell's length to its width, `1 ..= 100`.
+        max_ratio: f64,
     },
 }
 
@@ -270,7 +307,71 @@ pub struct Remesh {
 }
 
 /// Remeshes `mesh`; see the module docs.
+///
+/// The work runs on a copy of `mesh` whose vertices (and faces) are sorted
+/// along a Morton (Z-order) curve of their positions, so that the marches
+/// touch memory in spatial order (the fronts' neighbours are then mostly in
+/// cache: about 2x on an icosphere, whose subdivision order scatters
+/// neighbours); samples are mapped back to the input's vertex ids.
 pub fn remesh(
+    mesh: &TriMesh,
+    options: &RemeshOptions,
+    control: &Control<'_>,
+) -> Result<Remesh, RemeshError> {
+    let (local, old_of_new) = spatially_ordered(mesh);
+    let mut r = remesh_ordered(&local, options, control)?;
+    for s in r.samples.iter_mut() {
+        *s = old_of_new[*s as usize];
+    }
+    Ok(r)
+}
+
+/// `mesh` with its vertices sorted by the Morton code of their position
+/// (21 bits per axis over the bounding box) and its faces by the smallest
+/// new index of their corners (corner order, hence orientation, kept), and
+/// the old id of each new vertex.
+fn spatially_ordered(mesh: &TriMesh) -> (TriMesh, Vec<u32>) {
+    let (lo, hi) = bounds(mesh.positions());
+    let scale: [f64; 3] = std::array::from_fn(|j| {
+        let e = hi[j] - lo[j];
+        if e > 0.0 {
+            ((1u64 << 21) - 1) as f64 / e
+        } else {
+            0.0
+        }
+    });
+    let spread = |x: u64| {
+        // Bits of x (21) to every third bit.
+        let mut x = x & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f00000000ffff;
+        x = (x | x << 16) & 0x1f0000ff0000ff;
+        x = (x | x << 8) & 0x100f00f00f00f00f;
+        x = (x | x << 4) & 0x10c30c30c30c30c3;
+        (x | x << 2) & 0x1249249249249249
+    };
+    let code = |p: [f64; 3]| {
+        let q: [u64; 3] = std::array::from_fn(|j| ((p[j] - lo[j]) * scale[j]) as u64);
+        spread(q[0]) | spread(q[1]) << 1 | spread(q[2]) << 2
+    };
+    let mut order: Vec<u32> = (0..mesh.num_vertices() as u32).collect();
+    let codes: Vec<u64> = mesh.positions().iter().map(|&p| code(p)).collect();
+    order.sort_by_key(|&v| (codes[v as usize], v));
+    let mut new_of_old = vec![0u32; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        new_of_old[old as usize] = new as u32;
+    }
+    let positions: Vec<[f64; 3]> = order.iter().map(|&v| mesh.position(v)).collect();
+    let mut faces: Vec<[u32; 3]> = mesh
+        .faces()
+        .iter()
+        .map(|f| f.map(|v| new_of_old[v as usize]))
+        .collect();
+    faces.sort_by_key(|f| (f[0].min(f[1]).min(f[2]), *f));
+    (TriMesh::from_parts_unchecked(positions, faces), order)
+}
+
+/// [`remesh`] on the mesh as given (samples are its vertex ids).
+fn remesh_ordered(
     mesh: &TriMesh,
     options: &RemeshOptions,
     control: &Control<'_>,
@@ -298,8 +399,19 @@ pub fn remesh(
             ),
         });
     }
+    let mut tensors: Option<Vec<[f64; 6]>> = None;
     let weights = match options.adaptation {
         Adaptation::Uniform => None,
+        Adaptation::Anisotropic { max_ratio } => {
+            if !(max_ratio.is_finite() && (1.0..=100.0).contains(&max_ratio)) {
+                return Err(RemeshError::InvalidOption {
+                    option: "max_ratio",
+                    reason: "must be finite, >= 1 and <= 100".into(),
+                });
+            }
+            tensors = Some(anisotropic_face_metric(mesh, &topo, max_ratio));
+            None
+        }
         Adaptation::Curvature { strength } => {
             if !(strength.is_finite() && strength >= 0.0) {
                 return Err(RemeshError::InvalidOption {
@@ -310,7 +422,10 @@ pub fn remesh(
             Some(curvature_weights(mesh, &topo, strength))
         }
     };
-    let w = weights.as_deref();
+    let w = match &tensors {
+        Some(t) => Metric::Faces(t),
+        None => Metric::Weights(weights.as_deref()),
+    };
     let prep = MarchPrep::new(mesh, &topo);
     let areas = vertex_areas(mesh);
     let inner = control.cancel_only();
@@ -322,7 +437,10 @@ pub fn remesh(
         labels: vec![-1; n],
     };
     let mut samples: Vec<u32> = Vec::with_capacity(options.count);
-    let mut next = farthest(&field.distance).unwrap_or(0);
+    let mut work = MarchWork::new(n);
+    let mut queue = FarthestQueue::new(&field.distance);
+    let graph = VertexGraph::new(mesh);
+    let mut next = queue.farthest(&field.distance).map_or(0, |(v, _)| v);
     while samples.len() < options.count {
         if control.is_cancelled() {
             return Err(RemeshError::Cancelled);
@@ -333,12 +451,22 @@ pub fn remesh(
             label: samples.len() as i32,
         };
         samples.push(next);
-        march(mesh, &prep, &[seed], w, f64::INFINITY, &mut field, &inner)?;
+        march_metric(
+            &mut work,
+            mesh,
+            &prep,
+            &[seed],
+            w,
+            f64::INFINITY,
+            &mut field,
+            &inner,
+        )?;
+        queue.lowered_on(&graph, work.changed(), &field.distance);
         if samples.len().is_multiple_of(64) {
             control.report(samples.len() as f64 / total_steps);
         }
-        match farthest(&field.distance) {
-            Some(v) if field.distance[v as usize] > 0.0 => next = v,
+        match queue.farthest(&field.distance) {
+            Some((v, d)) if d > 0.0 => next = v,
             _ => break,
         }
     }
@@ -351,7 +479,7 @@ pub fn remesh(
             return Err(RemeshError::Cancelled);
         }
         let moved = lloyd_step(mesh, &field, &areas, samples.len());
-        let trial = voronoi(mesh, &prep, &moved, w, &inner)?;
+        let trial = voronoi(&mut work, mesh, &prep, &moved, w, &inner)?;
         let e = energy(&trial, &areas);
         control.report((options.count + (it + 1) * options.count / 4) as f64 / total_steps);
         if e.is_finite() && e <= energies[energies.len() - 1] {
@@ -432,7 +560,16 @@ pub fn remesh(
             continue;
         }
         added += seeds.len();
-        march(mesh, &prep, &seeds, w, f64::INFINITY, &mut field, &inner)?;
+        march_metric(
+            &mut work,
+            mesh,
+            &prep,
+            &seeds,
+            w,
+            f64::INFINITY,
+            &mut field,
+            &inner,
+        )?;
     }
 }
 
@@ -548,17 +685,6 @@ fn cell_radius(field: &MeshDistance, k: usize) -> Vec<(u32, f64)> {
     out
 }
 
-/// The vertex with the largest distance (`+inf` first: unreached components).
-fn farthest(d: &[f64]) -> Option<u32> {
-    let mut best: Option<(u32, f64)> = None;
-    for (v, &x) in d.iter().enumerate() {
-        if !x.is_nan() && best.is_none_or(|b| x > b.1) {
-            best = Some((v as u32, x));
-        }
-    }
-    best.map(|b| b.0)
-}
-
 /// Lumped vertex areas: a third of the areas of the incident faces.
 fn vertex_areas(mesh: &TriMesh) -> Vec<f64> {
     let mut a = vec![0.0; mesh.num_vertices()];
@@ -616,10 +742,11 @@ fn lloyd_step(mesh: &TriMesh, field: &MeshDistance, areas: &[f64], k: usize) -> 
 
 /// The Voronoi cells of `samples` (labels index `samples`).
 fn voronoi(
+    work: &mut MarchWork,
     mesh: &TriMesh,
     prep: &MarchPrep,
     samples: &[u32],
-    w: Option<&[f64]>,
+    w: Metric<'_>,
     control: &Control<'_>,
 ) -> Result<MeshDistance, MeshSolveError> {
     let n = mesh.num_vertices();
@@ -637,7 +764,16 @@ fn voronoi(
             label: i as i32,
         })
         .collect();
-    march(mesh, prep, &seeds, w, f64::INFINITY, &mut field, control)?;
+    march_metric(
+        work,
+        mesh,
+        prep,
+        &seeds,
+        w,
+        f64::INFINITY,
+        &mut field,
+        control,
+    )?;
     Ok(field)
 }
 
@@ -701,6 +837,207 @@ fn curvature_weights(mesh: &TriMesh, topo: &Topology, strength: f64) -> Vec<f64>
         .collect()
 }
 
+/// Area-weighted unit vertex normals.
+fn vertex_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
+    let mut normals = vec![[0.0f64; 3]; mesh.num_vertices()];
+    for face in mesh.faces() {
+        let nf = face_normal(mesh, *face);
+        for &v in face {
+            for j in 0..3 {
+                normals[v as usize][j] += nf[j];
+            }
+        }
+    }
+    for n in normals.iter_mut() {
+        let l = norm(*n);
+        if l > 0.0 {
+            *n = n.map(|x| x / l);
+        }
+    }
+    normals
+}
+
+/// A unit vector orthogonal to the unit vector `n`.
+fn orthogonal(n: [f64; 3]) -> [f64; 3] {
+    let a = if n[0].abs() < 0.6 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let t = cross(n, a);
+    let l = norm(t);
+    t.map(|x| x / l.max(f64::MIN_POSITIVE))
+}
+
+/// Eigenvalues `(λ₁ >= λ₂)` and the unit eigenvector of `λ₁` of the
+/// symmetric `[[a, b], [b, c]]`.
+fn eigen2(a: f64, b: f64, c: f64) -> (f64, f64, [f64; 2]) {
+    let m = 0.5 * (a + c);
+    let r = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (l1, l2) = (m + r, m - r);
+    // (b, l1 − a) or (l1 − c, b), whichever is longer.
+    let v = if (a - c).abs() + b.abs() == 0.0 {
+        [1.0, 0.0]
+    } else if a >= c {
+        [l1 - c, b]
+    } else {
+        [b, l1 - a]
+    };
+    let l = (v[0] * v[0] + v[1] * v[1]).sqrt();
+    (l1, l2, [v[0] / l, v[1] / l])
+}
+
+fn add_outer(t: &mut [f64; 6], s: f64, d: [f64; 3]) {
+    t[0] += s * d[0] * d[0];
+    t[1] += s * d[0] * d[1];
+    t[2] += s * d[0] * d[2];
+    t[3] += s * d[1] * d[1];
+    t[4] += s * d[1] * d[2];
+    t[5] += s * d[2] * d[2];
+}
+
+/// `|II|` of each vertex as a tensor of space (see the module docs), one
+/// pass of one-ring averaging.
+fn curvature_tensors(mesh: &TriMesh, topo: &Topology) -> Vec<[f64; 6]> {
+    let n = mesh.num_vertices();
+    let normals = vertex_normals(mesh);
+    let mut raw = vec![[0.0f64; 6]; n];
+    for v in 0..n {
+        let nv = normals[v];
+        if norm(nv) == 0.0 {
+            continue;
+        }
+        let t1 = orthogonal(nv);
+        let t2 = cross(nv, t1);
+        let pv = mesh.position(v as u32);
+        // Normal equations of the fit of (a, b, c).
+        let mut ata = [[0.0f64; 3]; 3];
+        let mut atb = [0.0f64; 3];
+        let mut rows = 0;
+        for &f in topo.faces_of(v as u32) {
+            for &u in &mesh.faces()[f as usize] {
+                if u as usize == v {
+                    continue;
+                }
+                let d = sub(mesh.position(u), pv);
+                let l2 = dot(d, d);
+                let (x, y) = (dot(d, t1), dot(d, t2));
+                let lt = (x * x + y * y).sqrt();
+                if l2 <= 0.0 || lt <= 0.0 {
+                    continue;
+                }
+                let kappa = 2.0 * dot(nv, d) / l2;
+                let (x, y) = (x / lt, y / lt);
+                let row = [x * x, 2.0 * x * y, y * y];
+                for ((line, rhs), &ri) in ata.iter_mut().zip(atb.iter_mut()).zip(&row) {
+                    for (x, &rj) in line.iter_mut().zip(&row) {
+                        *x += ri * rj;
+                    }
+                    *rhs += ri * kappa;
+                }
+                rows += 1;
+            }
+        }
+        let Some([a, b, c]) = (rows >= 3).then(|| solve3(ata, atb)).flatten() else {
+            continue;
+        };
+        let (k1, k2, e) = eigen2(a, b, c);
+        let r1: [f64; 3] = std::array::from_fn(|j| e[0] * t1[j] + e[1] * t2[j]);
+        let r2 = cross(nv, r1);
+        add_outer(&mut raw[v], k1.abs(), r1);
+        add_outer(&mut raw[v], k2.abs(), r2);
+    }
+    (0..n)
+        .map(|v| {
+            let mut s = raw[v];
+            let mut count = 1.0;
+            for &f in topo.faces_of(v as u32) {
+                for &u in &mesh.faces()[f as usize] {
+                    if u as usize != v {
+                        for (x, &y) in s.iter_mut().zip(&raw[u as usize]) {
+                            *x += y;
+                        }
+                        count += 1.0;
+                    }
+                }
+            }
+            s.map(|x| x / count)
+        })
+        .collect()
+}
+
+/// Solves the 3×3 system `A x = b` (Cramer), `None` when it is singular.
+fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det3 = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det3(a);
+    let scale = a.iter().flatten().map(|x| x.abs()).fold(0.0f64, f64::max);
+    let tiny = 1e-12 * scale * scale * scale;
+    if d.is_nan() || d.abs() <= tiny {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for (k, xk) in x.iter_mut().enumerate() {
+        let mut m = a;
+        for (line, &bi) in m.iter_mut().zip(&b) {
+            line[k] = bi;
+        }
+        *xk = det3(m) / d;
+    }
+    Some(x)
+}
+
+/// The face tensors `M_f` of [`Adaptation::Anisotropic`] (module docs).
+fn anisotropic_face_metric(mesh: &TriMesh, topo: &Topology, max_ratio: f64) -> Vec<[f64; 6]> {
+    let tv = curvature_tensors(mesh, topo);
+    // Per face: the eigen-decomposition of the projected mean tensor.
+    let eig: Vec<([f64; 3], [f64; 3], f64, f64)> = mesh
+        .faces()
+        .iter()
+        .map(|face| {
+            let mut t = [0.0f64; 6];
+            for &v in face {
+                for (x, &y) in t.iter_mut().zip(&tv[v as usize]) {
+                    *x += y / 3.0;
+                }
+            }
+            let p0 = mesh.position(face[0]);
+            let e = sub(mesh.position(face[1]), p0);
+            let nf = face_normal(mesh, *face);
+            let (le, ln) = (norm(e), norm(nf));
+            if le <= 0.0 || ln <= 0.0 {
+                return ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.0, 0.0);
+            }
+            let x = e.map(|c| c / le);
+            let y = cross(nf.map(|c| c / ln), x);
+            let form = |a: [f64; 3], b: [f64; 3]| {
+                crate::numerics::mesh::fast_marching::tensor_form(&t, a, b)
+            };
+            let (l1, l2, q) = eigen2(form(x, x), form(x, y), form(y, y));
+            let q1: [f64; 3] = std::array::from_fn(|j| q[0] * x[j] + q[1] * y[j]);
+            let q2: [f64; 3] = std::array::from_fn(|j| -q[1] * x[j] + q[0] * y[j]);
+            (q1, q2, l1.max(0.0), l2.max(0.0))
+        })
+        .collect();
+    let nf = eig.len().max(1) as f64;
+    let mean = eig.iter().map(|e| e.2).sum::<f64>() / nf;
+    let eps = if mean > 0.0 { mean / 100.0 } else { 1.0 };
+    let rho2 = max_ratio * max_ratio;
+    eig.iter()
+        .map(|&(q1, q2, l1, l2)| {
+            let m1 = l1.max(eps);
+            let m2 = l2.max(eps).max(m1 / rho2);
+            let mut t = [0.0f64; 6];
+            add_outer(&mut t, m1, q1);
+            add_outer(&mut t, m2, q2);
+            t
+        })
+        .collect()
+}
+
 /// Distance from `p` to the triangle `(a, b, c)`: the distance to its plane
 /// when the projection falls inside (barycentric coordinates all `>= 0`),
 /// else the distance to the nearest of its three edges (segments).
@@ -743,6 +1080,8 @@ struct TriangleGrid<'m> {
     dims: [usize; 3],
     offsets: Vec<u32>,
     items: Vec<u32>,
+    /// Bounding sphere of each triangle (centroid, largest corner distance).
+    spheres: Vec<([f64; 3], f64)>,
 }
 
 impl<'m> TriangleGrid<'m> {
@@ -789,6 +1128,16 @@ impl<'m> TriangleGrid<'m> {
             items[fill[c as usize] as usize] = f;
             fill[c as usize] += 1;
         }
+        let spheres = mesh
+            .faces()
+            .iter()
+            .map(|face| {
+                let ps = face.map(|v| mesh.position(v));
+                let g: [f64; 3] = std::array::from_fn(|j| (ps[0][j] + ps[1][j] + ps[2][j]) / 3.0);
+                let r = ps.iter().map(|&q| norm(sub(q, g))).fold(0.0f64, f64::max);
+                (g, r)
+            })
+            .collect();
         Self {
             mesh,
             origin: lo,
@@ -796,24 +1145,20 @@ impl<'m> TriangleGrid<'m> {
             dims,
             offsets: counts,
             items,
+            spheres,
         }
     }
 
-    /// Distance from `p` to the nearest triangle: rings of cells around the
-    /// cell of `p`, stopping once the best distance is within the ring's
-    /// inner radius (no unvisited cell can hold a nearer triangle).
+    /// Distance from `p` to the nearest triangle: blocks of cells growing
+    /// around the cell of `p`, stopping once the best distance is within the
+    /// distance from `p` to the outside of the block (a triangle registered
+    /// in no visited cell has its bounding box, hence all its points,
+    /// outside the block). Triangles whose bounding sphere is farther than
+    /// the best so far are skipped.
     fn distance(&self, p: [f64; 3]) -> f64 {
         let c: [i64; 3] = std::array::from_fn(|j| {
             (((p[j] - self.origin[j]) / self.cell).floor() as i64).clamp(0, self.dims[j] as i64 - 1)
         });
-        let outside: f64 = (0..3)
-            .map(|j| {
-                let lo = self.origin[j];
-                let hi = lo + self.dims[j] as f64 * self.cell;
-                (lo - p[j]).max(p[j] - hi).max(0.0).powi(2)
-            })
-            .sum::<f64>()
-            .sqrt();
         let maxr = *self.dims.iter().max().unwrap_or(&1) as i64;
         let mut best = f64::INFINITY;
         for r in 0..=maxr {
@@ -836,13 +1181,37 @@ impl<'m> TriangleGrid<'m> {
                             (i as usize * self.dims[1] + j as usize) * self.dims[2] + k as usize;
                         let (a, b) = (self.offsets[cell] as usize, self.offsets[cell + 1] as usize);
                         for &f in &self.items[a..b] {
+                            let (centre, radius) = self.spheres[f as usize];
+                            if norm(sub(p, centre)) - radius >= best {
+                                continue;
+                            }
                             let t = self.mesh.faces()[f as usize].map(|v| self.mesh.position(v));
                             best = best.min(point_triangle_distance(p, t[0], t[1], t[2]));
                         }
                     }
                 }
             }
-            if best <= outside + r as f64 * self.cell {
+            // Distance from `p` to the outside of the block of cells
+            // `c - r ..= c + r` (infinite on the sides where the block
+            // reaches the end of the grid: nothing lies beyond them).
+            let inside = (0..3)
+                .map(|j| {
+                    let lo_cell = c[j] - r;
+                    let hi_cell = c[j] + r + 1;
+                    let lo = if lo_cell <= 0 {
+                        f64::INFINITY
+                    } else {
+                        p[j] - (self.origin[j] + lo_cell as f64 * self.cell)
+                    };
+                    let hi = if hi_cell >= self.dims[j] as i64 {
+                        f64::INFINITY
+                    } else {
+                        self.origin[j] + hi_cell as f64 * self.cell - p[j]
+                    };
+                    lo.min(hi)
+                })
+                .fold(f64::INFINITY, f64::min);
+            if best <= inside {
                 break;
             }
         }
@@ -998,6 +1367,110 @@ mod tests {
             assert_eq!(r.output_topology.components, 1);
             assert!(rel <= 0.005, "hausdorff / diagonal = {rel}");
         }
+    }
+
+    /// Cell shape on the open cylinder of radius 1 (a 160-sided prism,
+    /// height 8): principal curvatures 1 around and 0 along the axis, so
+    /// the anisotropic cells are `max_ratio` = 3 times longer along the axis
+    /// than around it, the uniform ones about as long as wide. Measured by
+    /// the second moments of each cell's vertices along the axis (`z`) and
+    /// around it (arc length), median over the cells away from the rims.
+    #[test]
+    fn anisotropic_cells_are_elongated_along_the_cylinder_axis() {
+        let (sides, rings, height) = (160usize, 200usize, 8.0);
+        let mesh = crate::numerics::mesh::shapes::prism(sides, rings, 1.0, height);
+        let ratio = |adaptation: Adaptation| {
+            let options = RemeshOptions {
+                count: 400,
+                adaptation,
+                ..Default::default()
+            };
+            let r = remesh(&mesh, &options, &Control::new()).expect("remesh");
+            assert_eq!(r.output_topology.non_manifold_edges, 0);
+            assert_eq!(r.output_topology.misoriented_edges, 0);
+            assert!(r.valid, "{:?}", r.output_topology);
+            assert!(
+                r.topology_kept,
+                "{:?} vs {:?}",
+                r.output_topology, r.input_topology
+            );
+            // Per cell: Σ dz², Σ ds² around the sample (s = arc length).
+            let k = r.samples.len();
+            let mut m = vec![(0.0f64, 0.0f64, 0usize); k];
+            // Cells of the final samples: one multi-source march.
+            let prep = MarchPrep::new(&mesh, &Topology::new(&mesh));
+            let tensors = match adaptation {
+                Adaptation::Anisotropic { max_ratio } => Some(anisotropic_face_metric(
+                    &mesh,
+                    &Topology::new(&mesh),
+                    max_ratio,
+                )),
+                _ => None,
+            };
+            let metric = tensors
+                .as_deref()
+                .map_or(Metric::Weights(None), Metric::Faces);
+            let mut work = MarchWork::new(mesh.num_vertices());
+            let field = voronoi(&mut work, &mesh, &prep, &r.samples, metric, &Control::new())
+                .expect("voronoi");
+            for (v, &l) in field.labels.iter().enumerate() {
+                let (p, s) = (
+                    mesh.position(v as u32),
+                    mesh.position(r.samples[l as usize]),
+                );
+                let dz = p[2] - s[2];
+                let mut da = p[1].atan2(p[0]) - s[1].atan2(s[0]);
+                if da > std::f64::consts::PI {
+                    da -= std::f64::consts::TAU;
+                } else if da < -std::f64::consts::PI {
+                    da += std::f64::consts::TAU;
+                }
+                let e = &mut m[l as usize];
+                e.0 += dz * dz;
+                e.1 += da * da;
+                e.2 += 1;
+            }
+            let mut ratios: Vec<f64> = (0..k)
+                .filter(|&i| {
+                    let z = mesh.position(r.samples[i])[2];
+                    z > 1.5 && z < height - 1.5 && m[i].1 > 0.0
+                })
+                .map(|i| (m[i].0 / m[i].1).sqrt())
+                .collect();
+            ratios.sort_by(f64::total_cmp);
+            ratios[ratios.len() / 2]
+        };
+        let uniform = ratio(Adaptation::Uniform);
+        let aniso = ratio(Adaptation::Anisotropic { max_ratio: 3.0 });
+        println!("median length/width: uniform {uniform:.3}, anisotropic {aniso:.3}");
+        assert!((0.75..=1.33).contains(&uniform), "uniform {uniform}");
+        assert!((2.2..=3.8).contains(&aniso), "anisotropic {aniso}");
+    }
+
+    /// On a sphere all directions curve alike: the anisotropic metric is
+    /// isotropic there, and the remeshing keeps the genus.
+    #[test]
+    fn anisotropic_sphere_keeps_topology() {
+        let mesh = icosphere(4, 1.0);
+        let (r, rel) = run(&mesh, 500, Adaptation::Anisotropic { max_ratio: 3.0 });
+        check_valid(&r);
+        assert!(r.topology_kept, "{:?}", r.output_topology);
+        assert!(rel < 0.02, "hausdorff {rel}");
+    }
+
+    #[test]
+    fn principal_curvatures_of_a_cylinder() {
+        let mesh = crate::numerics::mesh::shapes::prism(120, 60, 2.0, 6.0);
+        let t = curvature_tensors(&mesh, &Topology::new(&mesh));
+        // A vertex away from the rims: |II| = (1/R) θθᵀ, θ the tangent around.
+        let v = 30 * 120 + 7;
+        let p = mesh.position(v as u32);
+        let theta = [-p[1] / 2.0, p[0] / 2.0, 0.0];
+        let around = crate::numerics::mesh::fast_marching::tensor_form(&t[v], theta, theta);
+        let along =
+            crate::numerics::mesh::fast_marching::tensor_form(&t[v], [0., 0., 1.], [0., 0., 1.]);
+        assert!((around - 0.5).abs() < 0.02, "around {around}");
+        assert!(along.abs() < 0.02, "along {along}");
     }
 
     #[test]
