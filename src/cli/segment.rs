@@ -36,6 +36,7 @@ use crate::ops::grid_sample::GridSampleRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
+use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpError, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.
@@ -218,8 +219,18 @@ pub struct SampleArgs {
     #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
     pub cost: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
-    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "N,M[,P]",
+        value_delimiter = ',',
+        conflicts_with = "tensor"
+    )]
     pub shape: Option<Vec<usize>>,
+    /// A Riemannian metric instead of a cost, as in `geodex distance`: an
+    /// array of shape (N, M, 3) with m11, m12, m22 per cell, or (N, M, P, 6)
+    /// in 3D; every cell symmetric positive definite.
+    #[arg(long, value_name = "T.npy", conflicts_with = "cost")]
+    pub tensor: Option<PathBuf>,
     /// Number of samples.
     #[arg(long, value_name = "K")]
     pub count: Option<usize>,
@@ -376,6 +387,7 @@ fn flag_of(field: &str) -> String {
         "mask" => "--mask".into(),
         "spacing" => "--spacing".into(),
         "cost" => "--cost".into(),
+        "metric" => "--tensor".into(),
         "seed_image" => "--seed-image".into(),
         "obstacles" => "--obstacles".into(),
         "max_distance" => "--max-distance".into(),
@@ -454,7 +466,7 @@ fn cost_of(
             interpretation: InterpretationSpec::Cost,
             design: None,
         },
-        (None, None) => return Err(flag("--cost", "give --cost or --shape")),
+        (None, None) => return Err(flag("--cost", "give --cost, --shape or --tensor")),
     })
 }
 
@@ -642,8 +654,18 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
 /// `geodex sample`.
 pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
+    let (cost, metric) = match &args.tensor {
+        Some(p) => (
+            None,
+            Some(TensorSpec::Components(ComponentsTensor {
+                dataset: read("--tensor", p, &mut inputs)?,
+            })),
+        ),
+        None => (Some(cost_of(&args.cost, &args.shape, &mut inputs)?), None),
+    };
     let request = GridSampleRequest {
-        cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
+        cost,
+        metric,
         spacing: args.spacing.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
