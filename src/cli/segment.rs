@@ -263,6 +263,10 @@ pub enum MeshMetricArg {
     Gradient,
     /// W from the Hessian's norm.
     Hessian,
+    /// Anisotropic: det(|H|)^(-1/6) |H| from the absolute Hessian.
+    AnisotropicHessian,
+    /// Anisotropic: Id + strength J / max from the structure tensor J.
+    StructureTensor,
 }
 
 /// Flags of `geodex mesh`.
@@ -280,9 +284,16 @@ pub struct MeshArgs {
     /// Smoothing scale of the derivatives.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub sigma: f64,
-    /// Contrast of the metric (W in [1, 1 + strength]).
+    /// Contrast of the metric (W in [1, 1 + strength]; anisotropic-hessian:
+    /// largest |λ| over the floor of every |λ|).
     #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
     pub strength: f64,
+    /// Anisotropic metrics: largest length-to-width ratio of an element.
+    #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
+    pub anisotropy: f64,
+    /// structure-tensor: integration scale.
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    pub rho: f64,
     /// Skip the uniform mesh of the same vertex count.
     #[arg(long)]
     pub no_compare: bool,
@@ -780,9 +791,13 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
             MeshMetricArg::Uniform => MeshMetricSpec::Uniform,
             MeshMetricArg::Gradient => MeshMetricSpec::Gradient,
             MeshMetricArg::Hessian => MeshMetricSpec::Hessian,
+            MeshMetricArg::AnisotropicHessian => MeshMetricSpec::AnisotropicHessian,
+            MeshMetricArg::StructureTensor => MeshMetricSpec::StructureTensor,
         },
         sigma: args.sigma,
         strength: args.strength,
+        anisotropy: args.anisotropy,
+        rho: args.rho,
         compare_uniform: !args.no_compare,
         spacing: args.spacing.spacing.clone(),
     };

@@ -225,7 +225,7 @@ impl<'a> TensorSampler<'a> {
             lo[a] = p[a].saturating_sub(ra);
             hi[a] = (p[a] + ra).min(shape[a] - 1);
         }
-        let mut start = |this: &mut Self, i: usize, v: f64| {
+        let start = |this: &mut Self, i: usize, v: f64| {
             let state = this.band.state(i as u32);
             if state == WALL || state == DONE {
                 return;
