@@ -227,3 +227,150 @@ proptest! {
         prop_assert_eq!(s.labels.iter().filter(|&&l| l < 0).count(), 0);
     }
 }
+
+/// Anisotropic farthest-point sampling (`tensor_farthest_point_sampling`)
+/// under a constant metric `M = λ1 e1e1ᵀ + λ2 e2e2ᵀ`: `x ↦ M^{1/2} x` is an
+/// isometry onto the Euclidean plane, so the Voronoi cells are Euclidean
+/// cells stretched by `sqrt(λ2 / λ1)` along `e1`, and the covering optimum
+/// is the hexagonal one of the area measured in the metric, `sqrt(det M) A`.
+mod tensor {
+    use super::r_hex;
+    use geodex::numerics::anisotropic::TensorField;
+    use geodex::numerics::sampling::delaunay::{geodesic_delaunay_tensor, DelaunayOptions};
+    use geodex::numerics::sampling::triangulation::check_planar;
+    use geodex::numerics::sampling::{tensor_farthest_point_sampling, SamplingOptions};
+    use geodex::numerics::{Control, Grid};
+
+    /// The summed second moments of the interior cells (those touching no
+    /// border cell): `[s00, s01, s11]` about each cell's own centroid.
+    fn interior_moments(shape: [usize; 2], labels: &[i32], count: usize) -> ([f64; 3], usize) {
+        let [n0, n1] = shape;
+        let mut border = vec![false; count];
+        let mut sums = vec![[0.0f64; 6]; count]; // n, x, y, xx, xy, yy
+        for r in 0..n0 {
+            for c in 0..n1 {
+                let l = labels[r * n1 + c];
+                assert!(l >= 0);
+                let l = l as usize;
+                if r == 0 || c == 0 || r + 1 == n0 || c + 1 == n1 {
+                    border[l] = true;
+                }
+                let (x, y) = (r as f64, c as f64);
+                let s = &mut sums[l];
+                s[0] += 1.0;
+                s[1] += x;
+                s[2] += y;
+                s[3] += x * x;
+                s[4] += x * y;
+                s[5] += y * y;
+            }
+        }
+        let mut m = [0.0; 3];
+        let mut interior = 0;
+        for (l, s) in sums.iter().enumerate() {
+            if border[l] {
+                continue;
+            }
+            interior += 1;
+            let (mx, my) = (s[1] / s[0], s[2] / s[0]);
+            m[0] += s[3] - s[0] * mx * mx;
+            m[1] += s[4] - s[0] * mx * my;
+            m[2] += s[5] - s[0] * my * my;
+        }
+        (m, interior)
+    }
+
+    /// Eigenvalues (larger first) and the angle of the leading eigenvector.
+    fn principal(m: [f64; 3]) -> (f64, f64, f64) {
+        let (a, b, c) = (m[0], m[1], m[2]);
+        let mean = 0.5 * (a + c);
+        let d = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        let angle = 0.5 * (2.0 * b).atan2(a - c);
+        (mean + d, mean - d, angle)
+    }
+
+    #[test]
+    fn voronoi_cells_are_stretched_by_the_metric_and_the_covering_is_near_hexagonal() {
+        let grid = Grid::unit(&[240, 240]).expect("grid");
+        // λ2 / λ1 = 4: lengths along e1 are half those across it, so the
+        // cells are twice as long along e1, which makes 30° with axis 0.
+        let theta = 30f64.to_radians();
+        let (l1, l2) = (1.0, 4.0);
+        let metric =
+            TensorField::from_eigen(&grid, &[l1, l2], &[theta.cos(), theta.sin()]).expect("m");
+        let count = 150;
+        let options = SamplingOptions {
+            count: Some(count),
+            ..Default::default()
+        };
+        let s = tensor_farthest_point_sampling(&grid, &metric, &options, &Control::new())
+            .expect("sampling");
+        assert_eq!(s.samples.len(), count);
+        assert!(s.radii.windows(2).all(|w| w[1] <= w[0]));
+
+        let (m, interior) = interior_moments([240, 240], &s.labels, count);
+        let (big, small, angle) = principal(m);
+        let ratio = (big / small).sqrt();
+        let expected = (l2 / l1).sqrt();
+        let turn = (angle - theta).abs().to_degrees();
+        println!(
+            "{interior} interior cells: axis ratio {ratio:.3} (expected {expected}), \
+             leading axis at {:.1}°",
+            angle.to_degrees()
+        );
+        assert!(interior >= 60, "{interior} interior cells");
+        assert!(
+            (ratio / expected - 1.0).abs() <= 0.10,
+            "axis ratio {ratio} against {expected}"
+        );
+        assert!(turn <= 5.0, "leading axis {:.1}°", angle.to_degrees());
+
+        // The covering radius against the hexagonal optimum in the metric.
+        let area = 239.0 * 239.0 * (l1 * l2).sqrt();
+        for n in [50, 100, 150] {
+            let ratio = s.radii[n - 1] / r_hex(area, n);
+            println!("N = {n}: covering radius / r_hex = {ratio:.3}");
+            assert!(ratio <= 1.5, "N = {n}: ratio {ratio}");
+            assert!(ratio >= 0.9, "N = {n}: ratio {ratio}");
+        }
+    }
+
+    #[test]
+    fn the_geodesic_delaunay_dual_of_an_anisotropic_sampling_is_a_valid_triangulation() {
+        let grid = Grid::unit(&[120, 160]).expect("grid");
+        let metric = TensorField::from_eigen(&grid, &[1.0, 9.0], &[1.0, 2.0]).expect("m");
+        let options = SamplingOptions {
+            count: Some(80),
+            seeds: vec![vec![0, 0], vec![0, 159], vec![119, 0], vec![119, 159]],
+            ..Default::default()
+        };
+        let s = tensor_farthest_point_sampling(&grid, &metric, &options, &Control::new())
+            .expect("sampling");
+        let d = geodesic_delaunay_tensor(
+            &grid,
+            &metric,
+            s,
+            &DelaunayOptions::default(),
+            &Control::new(),
+        )
+        .expect("delaunay");
+        assert!(check_planar(&d.points, &d.dual.triangles).is_empty());
+        // The triangles tile the rectangle.
+        let area: f64 = d
+            .dual
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| d.points[v as usize]);
+                0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+            })
+            .sum();
+        assert!((area - 119.0 * 159.0).abs() < 1e-6, "area {area}");
+        println!(
+            "{} vertices ({} added), {} triangles",
+            d.points.len(),
+            d.added,
+            d.dual.triangles.len()
+        );
+    }
+}

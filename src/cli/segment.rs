@@ -36,6 +36,7 @@ use crate::ops::grid_sample::GridSampleRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
+use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpError, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.
@@ -218,8 +219,18 @@ pub struct SampleArgs {
     #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
     pub cost: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
-    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "N,M[,P]",
+        value_delimiter = ',',
+        conflicts_with = "tensor"
+    )]
     pub shape: Option<Vec<usize>>,
+    /// A Riemannian metric instead of a cost, as in `geodex distance`: an
+    /// array of shape (N, M, 3) with m11, m12, m22 per cell, or (N, M, P, 6)
+    /// in 3D; every cell symmetric positive definite.
+    #[arg(long, value_name = "T.npy", conflicts_with = "cost")]
+    pub tensor: Option<PathBuf>,
     /// Number of samples.
     #[arg(long, value_name = "K")]
     pub count: Option<usize>,
@@ -252,6 +263,10 @@ pub enum MeshMetricArg {
     Gradient,
     /// W from the Hessian's norm.
     Hessian,
+    /// Anisotropic: det(|H|)^(-1/6) |H| from the absolute Hessian.
+    AnisotropicHessian,
+    /// Anisotropic: Id + strength J / max from the structure tensor J.
+    StructureTensor,
 }
 
 /// Flags of `geodex mesh`.
@@ -269,9 +284,16 @@ pub struct MeshArgs {
     /// Smoothing scale of the derivatives.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub sigma: f64,
-    /// Contrast of the metric (W in [1, 1 + strength]).
+    /// Contrast of the metric (W in [1, 1 + strength]; anisotropic-hessian:
+    /// largest |λ| over the floor of every |λ|).
     #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
     pub strength: f64,
+    /// Anisotropic metrics: largest length-to-width ratio of an element.
+    #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
+    pub anisotropy: f64,
+    /// structure-tensor: integration scale.
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    pub rho: f64,
     /// Skip the uniform mesh of the same vertex count.
     #[arg(long)]
     pub no_compare: bool,
@@ -379,6 +401,7 @@ fn flag_of(field: &str) -> String {
         "mask" => "--mask".into(),
         "spacing" => "--spacing".into(),
         "cost" => "--cost".into(),
+        "metric" => "--tensor".into(),
         "seed_image" => "--seed-image".into(),
         "obstacles" => "--obstacles".into(),
         "max_distance" => "--max-distance".into(),
@@ -457,7 +480,7 @@ fn cost_of(
             interpretation: InterpretationSpec::Cost,
             design: None,
         },
-        (None, None) => return Err(flag("--cost", "give --cost or --shape")),
+        (None, None) => return Err(flag("--cost", "give --cost, --shape or --tensor")),
     })
 }
 
@@ -645,8 +668,18 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
 /// `geodex sample`.
 pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
+    let (cost, metric) = match &args.tensor {
+        Some(p) => (
+            None,
+            Some(TensorSpec::Components(ComponentsTensor {
+                dataset: read("--tensor", p, &mut inputs)?,
+            })),
+        ),
+        None => (Some(cost_of(&args.cost, &args.shape, &mut inputs)?), None),
+    };
     let request = GridSampleRequest {
-        cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
+        cost,
+        metric,
         spacing: args.spacing.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
@@ -761,9 +794,13 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
             MeshMetricArg::Uniform => MeshMetricSpec::Uniform,
             MeshMetricArg::Gradient => MeshMetricSpec::Gradient,
             MeshMetricArg::Hessian => MeshMetricSpec::Hessian,
+            MeshMetricArg::AnisotropicHessian => MeshMetricSpec::AnisotropicHessian,
+            MeshMetricArg::StructureTensor => MeshMetricSpec::StructureTensor,
         },
         sigma: args.sigma,
         strength: args.strength,
+        anisotropy: args.anisotropy,
+        rho: args.rho,
         compare_uniform: !args.no_compare,
         spacing: args.spacing.spacing.clone(),
     };

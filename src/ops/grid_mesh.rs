@@ -37,6 +37,15 @@ pub enum MeshMetricSpec {
     Gradient,
     /// `W = 1 + strength · ‖Hessian(G_σ * f)‖ / max`: vertices where the image bends.
     Hessian,
+    /// Anisotropic: `M = det(|H|)^(-1/6) |H|`, the L2-optimal metric of the
+    /// absolute Hessian of `G_σ * f` with its eigenvalues at least
+    /// `max |λ| / strength` and element length-to-width ratios at most
+    /// `anisotropy`: long thin triangles along edges and ridges.
+    AnisotropicHessian,
+    /// Anisotropic: `M = Id + strength · J / max`, `J` the structure tensor
+    /// (noise scale `sigma`, integration scale `rho`), length-to-width
+    /// ratios at most `anisotropy`.
+    StructureTensor,
 }
 
 /// Request of `grid.mesh` (`POST /v1/grid/mesh`, `geodex mesh`).
@@ -56,10 +65,22 @@ pub struct GridMeshRequest {
     #[serde(default = "one")]
     #[schema(minimum = 0.0)]
     pub sigma: f64,
-    /// Contrast of the metric: `W` ranges over `[1, 1 + strength]`. Default 8.
+    /// Contrast of the metric: `W` ranges over `[1, 1 + strength]`
+    /// (`gradient`, `hessian`, `structure_tensor`); for
+    /// `anisotropic_hessian` the ratio of the largest `|λ|` of the Hessian to
+    /// the floor of every `|λ|` (at least 1). Default 8.
     #[serde(default = "eight")]
     #[schema(minimum = 0.0)]
     pub strength: f64,
+    /// Anisotropic metrics: the largest ratio of an element's length to its
+    /// width (at least 1). Default 8.
+    #[serde(default = "eight")]
+    #[schema(minimum = 1.0)]
+    pub anisotropy: f64,
+    /// `structure_tensor`: the integration scale `ρ` (physical units). Default 2.
+    #[serde(default = "two")]
+    #[schema(minimum = 0.0)]
+    pub rho: f64,
     /// Also mesh uniformly with the same vertex count and report its error. Default true.
     #[serde(default = "yes")]
     pub compare_uniform: bool,
@@ -77,6 +98,10 @@ fn eight() -> f64 {
     8.0
 }
 
+fn two() -> f64 {
+    2.0
+}
+
 fn yes() -> bool {
     true
 }
@@ -88,6 +113,17 @@ impl GridMeshRequest {
             MeshMetricSpec::Uniform => ImageMetric::Uniform,
             MeshMetricSpec::Gradient => ImageMetric::Gradient { sigma, strength },
             MeshMetricSpec::Hessian => ImageMetric::Hessian { sigma, strength },
+            MeshMetricSpec::AnisotropicHessian => ImageMetric::HessianTensor {
+                sigma,
+                strength,
+                anisotropy: self.anisotropy,
+            },
+            MeshMetricSpec::StructureTensor => ImageMetric::StructureTensor {
+                sigma,
+                rho: self.rho,
+                strength,
+                anisotropy: self.anisotropy,
+            },
         }
     }
 }
@@ -113,6 +149,18 @@ impl Operation for GridMeshRequest {
         }
         if !(self.strength.is_finite() && self.strength >= 0.0) {
             return Err(OpError::invalid("strength", "must be finite and >= 0"));
+        }
+        if self.metric == MeshMetricSpec::AnisotropicHessian && self.strength < 1.0 {
+            return Err(OpError::invalid(
+                "strength",
+                "must be >= 1 for `anisotropic_hessian` (the ratio of the largest |λ| to the floor)",
+            ));
+        }
+        if !(self.anisotropy.is_finite() && self.anisotropy >= 1.0) {
+            return Err(OpError::invalid("anisotropy", "must be finite and >= 1"));
+        }
+        if !(self.rho.is_finite() && self.rho >= 0.0) {
+            return Err(OpError::invalid("rho", "must be finite and >= 0"));
         }
         if let Some(spacing) = &self.spacing {
             if spacing.len() != 2 {

@@ -1,6 +1,8 @@
 //! `grid.sample`: farthest-point sampling of a grid under an isotropic cost
-//! (see [`crate::numerics::sampling::farthest`]): the samples, the distance
-//! to the nearest sample and the geodesic Voronoi labels.
+//! (see [`crate::numerics::sampling::farthest`]) or a Riemannian metric
+//! (a tensor field, [`crate::numerics::sampling::tensor_farthest`]): the
+//! samples, the distance to the nearest sample and the geodesic Voronoi
+//! labels.
 
 use std::time::Instant;
 
@@ -10,10 +12,12 @@ use utoipa::ToSchema;
 use super::spec::cost::{resolve_cost, CostSpec};
 use super::spec::grid::{check_spacing, shaped};
 use super::spec::scheme::metric_dataset_ids;
+use super::spec::tensor::{resolve_tensor, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::sampling::{
-    farthest_point_sampling, SamplingError, SamplingOptions, SamplingStop,
+    farthest_point_sampling, tensor_farthest_point_sampling, SamplingError, SamplingOptions,
+    SamplingStop,
 };
 use crate::numerics::Control;
 
@@ -23,8 +27,17 @@ use crate::numerics::Control;
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"cost": {"constant": 1.0, "shape": [256, 256]}, "count": 100}))]
 pub struct GridSampleRequest {
-    /// The isotropic metric, exactly as in `grid.distance`.
-    pub cost: CostSpec,
+    /// The isotropic metric, exactly as in `grid.distance`. Give exactly one
+    /// of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field `M`, exactly as `metric` in
+    /// `grid.distance` and `tensor` in `grid.tensor_distance`) instead of
+    /// `cost`: the fronts use the anisotropic solver's adaptive stencils
+    /// (first order), the Voronoi cells are those of the metric. Give
+    /// exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell along each axis. Default: the cost dataset's, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(min_items = 2, max_items = 3)]
@@ -51,13 +64,34 @@ impl Operation for GridSampleRequest {
     const NAME: &'static str = "grid.sample";
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.cost.validate(limits)?;
+        let shape: Option<Vec<usize>> = match (&self.cost, &self.metric) {
+            (Some(cost), None) => {
+                cost.validate(limits)?;
+                cost.shape.clone()
+            }
+            (None, Some(metric)) => {
+                metric.validate("metric", limits)?;
+                match metric {
+                    TensorSpec::Constant(c) => Some(c.shape.clone()),
+                    TensorSpec::Eigen(e) => Some(e.shape.clone()),
+                    _ => None,
+                }
+            }
+            (Some(_), Some(_)) => {
+                return Err(OpError::invalid(
+                    "metric",
+                    "give either `cost` (isotropic) or `metric` (a tensor field), not both",
+                ))
+            }
+            (None, None) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "missing: give `cost` (isotropic) or `metric` (a tensor field)",
+                ))
+            }
+        };
         check_spacing(&self.spacing)?;
-        let cells = self
-            .cost
-            .shape
-            .as_ref()
-            .map(|s| s.iter().product::<usize>());
+        let cells = shape.as_ref().map(|s| s.iter().product::<usize>());
         match (self.count, self.radius) {
             (None, None) => {
                 return Err(OpError::invalid("count", "give `count`, `radius` or both"))
@@ -103,7 +137,7 @@ impl Operation for GridSampleRequest {
                 reason: format!("more than {} seeds", limits.max_sources),
             });
         }
-        let ndim = self.cost.shape.as_ref().map(Vec::len);
+        let ndim = shape.as_ref().map(Vec::len);
         for (i, seed) in self.seeds.iter().enumerate() {
             if !(2..=3).contains(&seed.len()) || ndim.is_some_and(|d| d != seed.len()) {
                 return Err(OpError::invalid(
@@ -116,7 +150,7 @@ impl Operation for GridSampleRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = metric_dataset_ids(Some(&self.cost), None);
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".to_string(), id.clone()));
         }
@@ -134,25 +168,53 @@ impl Operation for GridSampleRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         self.validate(limits)?;
-        let resolved = resolve_cost(
-            &self.cost,
-            self.spacing.as_deref(),
-            self.obstacles.as_deref(),
-            inputs,
-            limits,
-            control,
-        )?;
-        let cost = resolved.isotropic()?;
-        let grid = &resolved.grid;
-        let started = Instant::now();
         let options = SamplingOptions {
             count: self.count,
             radius: self.radius,
             seeds: self.seeds.clone(),
         };
-        let s = farthest_point_sampling(grid, &cost, &options, control).map_err(sampling_error)?;
-        let seconds = started.elapsed().as_secs_f64();
-        let spacing = Some(resolved.spacing.clone());
+        let (grid, spacing, s, seconds) = match (&self.cost, &self.metric) {
+            (Some(cost), _) => {
+                let resolved = resolve_cost(
+                    cost,
+                    self.spacing.as_deref(),
+                    self.obstacles.as_deref(),
+                    inputs,
+                    limits,
+                    control,
+                )?;
+                let iso = resolved.isotropic()?;
+                let started = Instant::now();
+                let s = farthest_point_sampling(&resolved.grid, &iso, &options, control)
+                    .map_err(|e| sampling_error(e, "cost"))?;
+                let seconds = started.elapsed().as_secs_f64();
+                (resolved.grid.clone(), resolved.spacing.clone(), s, seconds)
+            }
+            (None, Some(metric)) => {
+                let resolved = resolve_tensor(
+                    metric,
+                    "metric",
+                    self.spacing.as_deref(),
+                    self.obstacles.as_deref(),
+                    inputs,
+                    limits,
+                    control,
+                )?;
+                let started = Instant::now();
+                let s = tensor_farthest_point_sampling(
+                    &resolved.grid,
+                    &resolved.metric,
+                    &options,
+                    control,
+                )
+                .map_err(|e| sampling_error(e, "metric"))?;
+                let seconds = started.elapsed().as_secs_f64();
+                (resolved.grid, resolved.spacing, s, seconds)
+            }
+            (None, None) => return Err(OpError::invalid("cost", "missing")),
+        };
+        let grid = &grid;
+        let spacing = Some(spacing);
         let document = serde_json::json!({
             "samples": s.samples,
             "stats": {
@@ -186,15 +248,18 @@ impl Operation for GridSampleRequest {
     }
 }
 
-/// A sampling error as an [`OpError`] naming the request field.
-fn sampling_error(e: SamplingError) -> OpError {
+/// A sampling error as an [`OpError`] naming the request field (`metric_field`:
+/// `cost` or `metric`, where the metric is at fault).
+fn sampling_error(e: SamplingError, metric_field: &str) -> OpError {
     match e {
         SamplingError::Cancelled => OpError::Cancelled,
         SamplingError::Seed { index, reason } => {
             OpError::invalid(format!("seeds[{index}]"), reason)
         }
         SamplingError::Radius(_) => OpError::invalid("radius", e.to_string()),
-        SamplingError::NoOpenCell => OpError::invalid("cost", e.to_string()),
+        SamplingError::NoOpenCell | SamplingError::Dimension { .. } => {
+            OpError::invalid(metric_field, e.to_string())
+        }
         SamplingError::NoStopRule
         | SamplingError::Count { .. }
         | SamplingError::FewerThanSeeds { .. } => OpError::invalid("count", e.to_string()),

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Image-meshing quality on scikit-image's `camera` (512x512): the L2 error of
-the piecewise-linear approximation on a uniform, a gradient-adapted and a
-Hessian-adapted geodesic Delaunay mesh with the same vertex count.
+the piecewise-linear approximation on a uniform, a gradient-adapted, a
+Hessian-adapted (isotropic) and two anisotropic (absolute Hessian
+det^(-1/6)|H|, structure tensor) geodesic Delaunay meshes with the same
+vertex count.
 
 Needs a venv with scikit-image and numpy (the image only) and a geodex binary:
 
@@ -38,13 +40,22 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "camera.npy")
         np.save(path, image)
-        for metric in ["uniform", "gradient", "hessian"]:
+        # (metric, sigma, strength, extra flags): the isotropic ones with the
+        # command-line settings, the anisotropic ones with the settings tuned
+        # on this image (tests/bench/README.md; higher contrasts leave a
+        # defect the Delaunay repair cannot fix).
+        runs = [("uniform", args.sigma, args.strength, []),
+                ("gradient", args.sigma, args.strength, []),
+                ("hessian", args.sigma, args.strength, []),
+                ("anisotropic-hessian", 1.0, 20.0, ["--anisotropy", "8"]),
+                ("structure-tensor", 1.0, 32.0, ["--anisotropy", "4", "--rho", "1"])]
+        for metric, sigma, strength, extra in runs:
             out = os.path.join(tmp, f"{metric}.ply")
             stats = os.path.join(tmp, f"{metric}.json")
             cmd = [args.geodex, "mesh", "--image", path, "--count", str(args.count),
-                   "--metric", metric, "--sigma", str(args.sigma),
-                   "--strength", str(args.strength), "--no-compare",
-                   "--out", out, "--stats", stats]
+                   "--metric", metric, "--sigma", str(sigma),
+                   "--strength", str(strength), "--no-compare",
+                   "--out", out, "--stats", stats] + extra
             t0 = time.perf_counter()
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             seconds = time.perf_counter() - t0

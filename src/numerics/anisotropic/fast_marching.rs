@@ -116,6 +116,11 @@ impl FactorPoint {
     }
 }
 
+/// [`index_metric`] for the samplers of [`crate::numerics::sampling`].
+pub(crate) fn index_metric_of(grid: &Grid, m: &[f64]) -> [[f64; 3]; 3] {
+    index_metric(grid, m)
+}
+
 /// The padded 3×3 index-unit metric `H M H` of a tensor given by components.
 pub(super) fn index_metric(grid: &Grid, m: &[f64]) -> [[f64; 3]; 3] {
     let h = grid.spacing3();
@@ -377,10 +382,8 @@ impl Ctx<'_> {
         best
     }
 
-    /// The fallback of incomplete stencils: the semi-Lagrangian update
-    /// `min_{t ∈ [0,1]} (1 − t) U(y1) + t U(y2) + ‖x − ((1 − t) y1 + t y2)‖_M(x)`
-    /// over the pairs of adjacent frozen immediate neighbours (and single
-    /// neighbours), consistent for any metric, first order.
+    /// The fallback of incomplete stencils ([`semi_lagrangian`]) over the
+    /// frozen neighbours.
     fn semi_lagrangian(
         &self,
         y: usize,
@@ -389,65 +392,8 @@ impl Ctx<'_> {
         labels: &[i32],
         heap: &IndexedHeap,
     ) -> Option<(f64, i32)> {
-        let m = index_metric(self.grid, self.metric.at(y));
-        let x = self.grid.unravel(y);
-        let mut nbrs: [([f64; 3], f64, i32); 26] = [([0.0; 3], 0.0, 0); 26];
-        let mut cnt = 0;
-        for (b, o) in NEIGHBOURS.iter().enumerate() {
-            if mask & (1 << b) == 0 {
-                continue;
-            }
-            let j = self.grid.linear([
-                (x[0] as i64 + o[0]) as usize,
-                (x[1] as i64 + o[1]) as usize,
-                (x[2] as i64 + o[2]) as usize,
-            ]);
-            if heap.state(j as u32) == FROZEN {
-                nbrs[cnt] = (o.map(|v| v as f64), u[j], labels[j]);
-                cnt += 1;
-            }
-        }
-        let quad = |p: [f64; 3], q: [f64; 3]| {
-            let mut s = 0.0;
-            for a in 0..3 {
-                for c in 0..3 {
-                    s += p[a] * m[a][c] * q[c];
-                }
-            }
-            s
-        };
-        let mut best: Option<(f64, i32)> = None;
-        let mut offer = |v: f64, l: i32| {
-            if v.is_finite() && best.is_none_or(|(bv, _)| v < bv) {
-                best = Some((v, l));
-            }
-        };
-        for p in &nbrs[..cnt] {
-            offer(p.1 + quad(p.0, p.0).max(0.0).sqrt(), p.2);
-        }
-        for i1 in 0..cnt {
-            for i2 in i1 + 1..cnt {
-                let (o1, a, l1) = nbrs[i1];
-                let (o2, b, l2) = nbrs[i2];
-                if (0..3).any(|k| (o1[k] - o2[k]).abs() > 1.0) {
-                    continue;
-                }
-                // w(t) = w0 − t d with w0 = −o1 (from y1 to x), d = o2 − o1.
-                let w0 = o1.map(|v| -v);
-                let d = [o2[0] - o1[0], o2[1] - o1[1], o2[2] - o1[2]];
-                let (aa, bb, cc) = (quad(d, d), quad(w0, d), quad(w0, w0));
-                let delta = b - a;
-                if aa <= delta * delta {
-                    continue;
-                }
-                let k = (aa * cc - bb * bb).max(0.0);
-                let s = -delta.signum() * delta.abs() * (k / (aa - delta * delta)).sqrt();
-                let t = ((s + bb) / aa).clamp(0.0, 1.0);
-                let len = (aa * t * t - 2.0 * bb * t + cc).max(0.0).sqrt();
-                offer(a + t * delta + len, if t < 0.5 { l1 } else { l2 });
-            }
-        }
-        best
+        let frozen = |j: usize| heap.state(j as u32) == FROZEN;
+        semi_lagrangian(self.grid, self.metric, y, mask, u, labels, &frozen)
     }
 
     /// The scheme's root, its label and the smallest neighbour value it used.
@@ -635,6 +581,143 @@ impl Ctx<'_> {
             nt = kept;
         }
     }
+}
+
+/// The fallback of incomplete stencils: the semi-Lagrangian update
+/// `min_{t ∈ [0,1]} (1 − t) U(y1) + t U(y2) + ‖x − ((1 − t) y1 + t y2)‖_M(x)`
+/// over the pairs of adjacent immediate neighbours that `known` accepts (and
+/// single neighbours), consistent for any metric, first order. `mask` is the
+/// cell's [`Stencils::fallback`] bit set.
+pub(crate) fn semi_lagrangian(
+    grid: &Grid,
+    metric: &super::TensorField,
+    y: usize,
+    mask: u32,
+    u: &[f64],
+    labels: &[i32],
+    known: &dyn Fn(usize) -> bool,
+) -> Option<(f64, i32)> {
+    let m = index_metric(grid, metric.at(y));
+    let x = grid.unravel(y);
+    let mut nbrs: [([f64; 3], f64, i32); 26] = [([0.0; 3], 0.0, 0); 26];
+    let mut cnt = 0;
+    for (b, o) in NEIGHBOURS.iter().enumerate() {
+        if mask & (1 << b) == 0 {
+            continue;
+        }
+        let j = grid.linear([
+            (x[0] as i64 + o[0]) as usize,
+            (x[1] as i64 + o[1]) as usize,
+            (x[2] as i64 + o[2]) as usize,
+        ]);
+        if known(j) {
+            nbrs[cnt] = (o.map(|v| v as f64), u[j], labels[j]);
+            cnt += 1;
+        }
+    }
+    let quad = |p: [f64; 3], q: [f64; 3]| {
+        let mut s = 0.0;
+        for a in 0..3 {
+            for c in 0..3 {
+                s += p[a] * m[a][c] * q[c];
+            }
+        }
+        s
+    };
+    let mut best: Option<(f64, i32)> = None;
+    let mut offer = |v: f64, l: i32| {
+        if v.is_finite() && best.is_none_or(|(bv, _)| v < bv) {
+            best = Some((v, l));
+        }
+    };
+    for p in &nbrs[..cnt] {
+        offer(p.1 + quad(p.0, p.0).max(0.0).sqrt(), p.2);
+    }
+    for i1 in 0..cnt {
+        for i2 in i1 + 1..cnt {
+            let (o1, a, l1) = nbrs[i1];
+            let (o2, b, l2) = nbrs[i2];
+            if (0..3).any(|k| (o1[k] - o2[k]).abs() > 1.0) {
+                continue;
+            }
+            // w(t) = w0 − t d with w0 = −o1 (from y1 to x), d = o2 − o1.
+            let w0 = o1.map(|v| -v);
+            let d = [o2[0] - o1[0], o2[1] - o1[1], o2[2] - o1[2]];
+            let (aa, bb, cc) = (quad(d, d), quad(w0, d), quad(w0, w0));
+            let delta = b - a;
+            if aa <= delta * delta {
+                continue;
+            }
+            let k = (aa * cc - bb * bb).max(0.0);
+            let s = -delta.signum() * delta.abs() * (k / (aa - delta * delta)).sqrt();
+            let t = ((s + bb) / aa).clamp(0.0, 1.0);
+            let len = (aa * t * t - 2.0 * bb * t + cc).max(0.0).sqrt();
+            offer(a + t * delta + len, if t < 0.5 { l1 } else { l2 });
+        }
+    }
+    best
+}
+
+/// The first-order update of cell `y` from the neighbours `known` accepts,
+/// with its label: the Eulerian scheme of the module docs,
+/// `Σ_k ρ_k max(0, U − U(y − e_k), U − U(y + e_k))² = 1` (each offset on
+/// its side with the smaller known value, the terms added in increasing
+/// order of their values while the root stays above them), and on
+/// incomplete stencils the smaller of that and the [`semi_lagrangian`]
+/// fallback. No factoring and no second order: this is the update of the
+/// local fronts of farthest-point sampling
+/// ([`crate::numerics::sampling::tensor_farthest`]), where a known value may
+/// come from an earlier front.
+pub(crate) fn first_order_update(
+    grid: &Grid,
+    metric: &super::TensorField,
+    st: &Stencils,
+    y: usize,
+    u: &[f64],
+    labels: &[i32],
+    known: &dyn Fn(usize) -> bool,
+) -> Option<(f64, i32)> {
+    let k = st.k;
+    let mut terms = [Term::default(); 6];
+    let mut nt = 0;
+    for s in 0..k {
+        let rho = st.rho[y * k + s];
+        if rho <= 0.0 {
+            continue;
+        }
+        let mut best: Option<usize> = None;
+        for side in 0..2 {
+            let j = st.nb[(y * k + s) * 2 + side];
+            if j == NONE || !known(j as usize) {
+                continue;
+            }
+            let j = j as usize;
+            if best.is_none_or(|b| u[j] < u[b]) {
+                best = Some(j);
+            }
+        }
+        if let Some(j) = best {
+            terms[nt] = Term {
+                c2: rho,
+                b: u[j],
+                label: labels[j],
+                a: u[j],
+                j: j as u32,
+                second: false,
+            };
+            nt += 1;
+        }
+    }
+    let mut best = solve_terms(&mut terms[..nt], 1.0).map(|(v, l, _)| (v, l));
+    let mask = st.fallback[y];
+    if mask != 0 {
+        if let Some((v, l)) = semi_lagrangian(grid, metric, y, mask, u, labels, known) {
+            if best.is_none_or(|(bv, _)| v < bv) {
+                best = Some((v, l));
+            }
+        }
+    }
+    best
 }
 
 /// The root `U > min b` of `Σ c2 ((U − b)⁺)² = 1`, adding terms in

@@ -24,17 +24,50 @@
 //!
 //! The uniform metric (`W = 1`) gives the mesh of the same vertex count to
 //! compare with.
+//!
+//! # Anisotropic metrics
+//!
+//! An isotropic metric can only make triangles smaller; along an edge or a
+//! ridge they should also be long and thin. Two Riemannian metrics `M(x)`
+//! are sampled with the tensor farthest-point sampler
+//! ([`crate::numerics::sampling::tensor_farthest`]) and triangulated by the
+//! same conforming geodesic Delaunay dual
+//! ([`crate::numerics::sampling::delaunay::geodesic_delaunay_tensor`]):
+//!
+//! * **Hessian** ([`ImageMetric::HessianTensor`], Bougleux, Peyré & Cohen
+//!   2008 after the anisotropic-mesh literature): the error of linear
+//!   interpolation on a triangle with edges `e` is about `eᵀ|H|e / 2`, with
+//!   `|H| = R diag(|λ1|, |λ2|) Rᵀ` the absolute Hessian of `G_σ * f`. A
+//!   triangle of unit size in `|H|` has an error of order 1 and an area of
+//!   `det|H|^{-1/2}`; minimising the `L^p` error for a given number of
+//!   vertices equidistributes `|e|^p · area` and gives
+//!   `M = det(|H|)^{-1/(2p+2)} |H|`, i.e. `det(|H|)^{-1/6} |H|` for the
+//!   `L²` norm. `|H|` is regularised first: each `|λ_k|` is raised to at
+//!   least `Λ / strength` (`Λ` the largest `|λ|` over the image: flat regions
+//!   keep a finite size) and the smaller to at least the larger over
+//!   `anisotropy²` (elements at most `anisotropy` times longer than wide).
+//! * **Structure tensor** ([`ImageMetric::StructureTensor`]):
+//!   `J = G_ρ * (∇f_σ ∇f_σᵀ)` is large across edges and small along them;
+//!   `M = Id + strength · J / μ_max` (`μ_max` the largest eigenvalue of `J`
+//!   over the image), with the same cap on the anisotropy.
+//!
+//! The `cost` reported for a tensor metric is `det(M)^{1/4}`: the isotropic
+//! cost with the same density of vertices (`∝ sqrt(det M)` per unit area).
 
 use std::borrow::Cow;
 
+use crate::numerics::anisotropic::structure_tensor::structure_tensor;
+use crate::numerics::anisotropic::{TensorError, TensorField};
 use crate::numerics::control::Control;
 use crate::numerics::filters::{self, FilterError};
 use crate::numerics::grid::Grid;
 use crate::numerics::metric::{CostValues, Interpretation, IsotropicCost, MetricError};
 use crate::numerics::sampling::delaunay::{
-    geodesic_delaunay, DelaunayError, DelaunayOptions, RepairCounts,
+    geodesic_delaunay, geodesic_delaunay_tensor, DelaunayError, DelaunayOptions, RepairCounts,
 };
-use crate::numerics::sampling::{farthest_point_sampling, SamplingError, SamplingOptions};
+use crate::numerics::sampling::{
+    farthest_point_sampling, tensor_farthest_point_sampling, SamplingError, SamplingOptions,
+};
 
 /// The metric derived from the image.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,6 +87,27 @@ pub enum ImageMetric {
         sigma: f64,
         /// Contrast `α >= 0`.
         strength: f64,
+    },
+    /// Anisotropic: `M = det(|H_ε|)^{-1/6} |H_ε|`, the `L²`-optimal metric of
+    /// the regularised absolute Hessian (see the module docs).
+    HessianTensor {
+        /// Smoothing scale `σ` (physical units), `>= 0`.
+        sigma: f64,
+        /// Ratio of the largest `|λ|` to the floor of every `|λ|`, `>= 1`.
+        strength: f64,
+        /// Largest ratio of an element's length to its width, `>= 1`.
+        anisotropy: f64,
+    },
+    /// Anisotropic: `M = Id + strength · J / μ_max`, `J` the structure tensor.
+    StructureTensor {
+        /// Noise scale `σ` of the gradient (physical units), `>= 0`.
+        sigma: f64,
+        /// Integration scale `ρ` (physical units), `>= 0`.
+        rho: f64,
+        /// Contrast `>= 0`.
+        strength: f64,
+        /// Largest ratio of an element's length to its width, `>= 1`.
+        anisotropy: f64,
     },
 }
 
@@ -144,6 +198,10 @@ pub fn image_cost(
 ) -> Result<Vec<f64>, MeshingError> {
     let (sigma, strength, hessian) = match metric {
         ImageMetric::Uniform => return Ok(vec![1.0; grid.len()]),
+        ImageMetric::HessianTensor { .. } | ImageMetric::StructureTensor { .. } => {
+            let t = image_tensor(grid, image, metric, control)?;
+            return Ok(tensor_density(grid, t.as_ref()));
+        }
         ImageMetric::Gradient { sigma, strength } => (sigma, strength, false),
         ImageMetric::Hessian { sigma, strength } => (sigma, strength, true),
     };
@@ -169,6 +227,144 @@ pub fn image_cost(
         return Ok(vec![1.0; grid.len()]);
     }
     Ok(q.iter().map(|v| 1.0 + strength * v / max).collect())
+}
+
+/// `det(M)^{1/4}` per cell (1 without a field): the isotropic cost with the
+/// same vertex density as the tensor `M`.
+fn tensor_density(grid: &Grid, t: Option<&TensorField>) -> Vec<f64> {
+    match t {
+        None => vec![1.0; grid.len()],
+        Some(t) => (0..grid.len())
+            .map(|i| {
+                let m = t.at(i);
+                (m[0] * m[2] - m[1] * m[1]).max(0.0).powf(0.25)
+            })
+            .collect(),
+    }
+}
+
+/// The symmetric 2×2 matrix `R diag(μ1, μ2) Rᵀ` with the leading
+/// eigenvector at angle `phi` (axis 0 first), as `[m00, m01, m11]`.
+fn from_eigen(mu1: f64, mu2: f64, phi: f64) -> [f64; 3] {
+    let (c, s) = (phi.cos(), phi.sin());
+    [
+        mu1 * c * c + mu2 * s * s,
+        (mu1 - mu2) * c * s,
+        mu1 * s * s + mu2 * c * c,
+    ]
+}
+
+/// Eigenvalues (larger first) and the angle of the leading eigenvector of
+/// the symmetric `[a, b; b, c]`.
+fn eigen2(a: f64, b: f64, c: f64) -> (f64, f64, f64) {
+    let mean = 0.5 * (a + c);
+    let d = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    (mean + d, mean - d, 0.5 * (2.0 * b).atan2(a - c))
+}
+
+/// The anisotropic metric of `image` for [`ImageMetric::HessianTensor`] and
+/// [`ImageMetric::StructureTensor`] (see the module docs); `None` for the
+/// isotropic metrics.
+pub fn image_tensor(
+    grid: &Grid,
+    image: &[f64],
+    metric: ImageMetric,
+    control: &Control<'_>,
+) -> Result<Option<TensorField>, MeshingError> {
+    let check = |name: &str, v: f64, min: f64| {
+        if v.is_finite() && v >= min {
+            Ok(())
+        } else {
+            Err(MeshingError::Metric(format!(
+                "{name} {v} must be finite and >= {min}"
+            )))
+        }
+    };
+    let comps: Vec<f64> = match metric {
+        ImageMetric::Uniform | ImageMetric::Gradient { .. } | ImageMetric::Hessian { .. } => {
+            return Ok(None)
+        }
+        ImageMetric::HessianTensor {
+            sigma,
+            strength,
+            anisotropy,
+        } => {
+            check("strength", strength, 1.0)?;
+            check("anisotropy", anisotropy, 1.0)?;
+            let smooth = filters::gaussian_smooth(grid, image, sigma, control)?;
+            let h = filters::hessian(grid, &smooth, control)?;
+            // |λ| per cell, larger first, and the leading direction.
+            let eig: Vec<(f64, f64, f64)> = h
+                .iter()
+                .map(|h| {
+                    let (l1, l2, phi) = eigen2(h[1], h[5], h[2]);
+                    if l1.abs() >= l2.abs() {
+                        (l1.abs(), l2.abs(), phi)
+                    } else {
+                        (l2.abs(), l1.abs(), phi + std::f64::consts::FRAC_PI_2)
+                    }
+                })
+                .collect();
+            let top = eig.iter().map(|e| e.0).fold(0.0, f64::max);
+            if top <= 0.0 {
+                return Ok(Some(TensorField::constant(grid, &[1.0, 0.0, 1.0])?));
+            }
+            let floor = top / strength;
+            let cap = anisotropy * anisotropy;
+            let mut out = Vec::with_capacity(3 * grid.len());
+            for &(a, b, phi) in &eig {
+                let mu1 = a.max(floor);
+                let mu2 = b.max(floor).max(mu1 / cap);
+                // det(|H|)^{-1/6} |H|, scaled by the floor so values stay near 1.
+                let scale = ((mu1 / floor) * (mu2 / floor)).powf(-1.0 / 6.0) / floor;
+                out.extend(from_eigen(mu1 * scale, mu2 * scale, phi));
+            }
+            out
+        }
+        ImageMetric::StructureTensor {
+            sigma,
+            rho,
+            strength,
+            anisotropy,
+        } => {
+            check("strength", strength, 0.0)?;
+            check("anisotropy", anisotropy, 1.0)?;
+            let j = structure_tensor(grid, image, sigma, rho, control).map_err(tensor_error)?;
+            let eig: Vec<(f64, f64, f64)> = j
+                .chunks_exact(3)
+                .map(|m| eigen2(m[0], m[1], m[2]))
+                .collect();
+            let top = eig.iter().map(|e| e.0).fold(0.0, f64::max);
+            let cap = anisotropy * anisotropy;
+            let mut out = Vec::with_capacity(3 * grid.len());
+            for &(a, b, phi) in &eig {
+                let (mu1, mu2) = if top > 0.0 {
+                    (
+                        1.0 + strength * a.max(0.0) / top,
+                        1.0 + strength * b.max(0.0) / top,
+                    )
+                } else {
+                    (1.0, 1.0)
+                };
+                out.extend(from_eigen(mu1, mu2.max(mu1 / cap), phi));
+            }
+            out
+        }
+    };
+    Ok(Some(TensorField::from_components(grid, comps)?))
+}
+
+fn tensor_error(e: TensorError) -> MeshingError {
+    match e {
+        TensorError::Cancelled => MeshingError::Cancelled,
+        other => MeshingError::Metric(other.to_string()),
+    }
+}
+
+impl From<TensorError> for MeshingError {
+    fn from(e: TensorError) -> Self {
+        tensor_error(e)
+    }
 }
 
 /// Meshes `image` (one value per cell of the 2D `grid`, C order) with about
@@ -204,7 +400,11 @@ pub fn mesh_image(
         });
     }
     let [_, n0, n1] = grid.shape3();
-    let w = image_cost(grid, image, options.metric, control)?;
+    let tensor = image_tensor(grid, image, options.metric, control)?;
+    let w = match &tensor {
+        Some(t) => tensor_density(grid, Some(t)),
+        None => image_cost(grid, image, options.metric, control)?,
+    };
     let cost = IsotropicCost::new(
         grid,
         CostValues::F64(Cow::Borrowed(&w)),
@@ -218,21 +418,25 @@ pub fn mesh_image(
         vec![n0 - 1, n1 - 1],
     ];
     let run = |count: usize| {
-        let sampling = farthest_point_sampling(
-            grid,
-            &cost,
-            &SamplingOptions {
-                count: Some(count.max(4)),
-                radius: None,
-                seeds: corners.clone(),
-            },
-            control,
-        )?;
+        let sampling_options = SamplingOptions {
+            count: Some(count.max(4)),
+            radius: None,
+            seeds: corners.clone(),
+        };
         let options = DelaunayOptions {
             conforming: true,
             max_added: None,
         };
-        Ok::<_, MeshingError>(geodesic_delaunay(grid, &cost, sampling, &options, control)?)
+        Ok::<_, MeshingError>(match &tensor {
+            None => {
+                let sampling = farthest_point_sampling(grid, &cost, &sampling_options, control)?;
+                geodesic_delaunay(grid, &cost, sampling, &options, control)?
+            }
+            Some(t) => {
+                let sampling = tensor_farthest_point_sampling(grid, t, &sampling_options, control)?;
+                geodesic_delaunay_tensor(grid, t, sampling, &options, control)?
+            }
+        })
     };
     let mut d = run(options.count)?;
     if d.added > 0 && options.count > 4 + d.added {

@@ -54,8 +54,10 @@
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 
-use super::farthest::{GridSampling, Sampler, SamplingError, SamplingStop};
+use super::farthest::{Front, GridSampling, Sampler, SamplingError, SamplingStop};
+use super::tensor_farthest::TensorSampler;
 use super::triangulation::{self, check_planar, Defect};
+use crate::numerics::anisotropic::TensorField;
 use crate::numerics::control::Control;
 use crate::numerics::grid::Grid;
 use crate::numerics::metric::IsotropicCost;
@@ -372,20 +374,89 @@ pub fn geodesic_delaunay(
             got: sampling.labels.len(),
         });
     }
-    let [_, n0, n1] = grid.shape3();
-    let sp = grid.spacing3();
-    let spacing = [sp[1], sp[2]];
-    let max_added = options.max_added.unwrap_or(n);
+    let n1 = grid.shape3()[2];
     let GridSampling {
         samples,
         distance,
         labels,
-        mut radii,
+        radii,
         visited,
         ..
     } = sampling;
-    let mut cells: Vec<usize> = samples.iter().map(|p| p[0] * n1 + p[1]).collect();
-    let mut sampler = Sampler::resume(grid, cost, distance, labels);
+    let cells: Vec<usize> = samples.iter().map(|p| p[0] * n1 + p[1]).collect();
+    let sampler = Sampler::resume(grid, cost, distance, labels);
+    repair(grid, sampler, cells, radii, visited, options, control)
+}
+
+/// [`geodesic_delaunay`] for a sampling under a Riemannian metric (a
+/// [`tensor_farthest_point_sampling`](super::tensor_farthest_point_sampling)
+/// of `grid` under `metric`): the same dual and the same repairs, each
+/// added sample's front run with the metric's adaptive stencils. The dual
+/// is oriented and checked on the samples' positions in the plane of the
+/// grid, so a repaired result is a valid planar triangulation whatever the
+/// metric.
+///
+/// # Examples
+/// ```
+/// use geodex::numerics::anisotropic::TensorField;
+/// use geodex::numerics::sampling::{tensor_farthest_point_sampling, SamplingOptions};
+/// use geodex::numerics::sampling::delaunay::{geodesic_delaunay_tensor, DelaunayOptions};
+/// use geodex::numerics::sampling::triangulation::check_planar;
+/// use geodex::numerics::{Control, Grid};
+/// let grid = Grid::unit(&[40, 40])?;
+/// let metric = TensorField::from_eigen(&grid, &[1.0, 4.0], &[1.0, 0.0])?;
+/// let options = SamplingOptions { count: Some(30), ..Default::default() };
+/// let s = tensor_farthest_point_sampling(&grid, &metric, &options, &Control::new())?;
+/// let d = geodesic_delaunay_tensor(&grid, &metric, s, &DelaunayOptions::default(), &Control::new())?;
+/// assert!(check_planar(&d.points, &d.dual.triangles).is_empty());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn geodesic_delaunay_tensor(
+    grid: &Grid,
+    metric: &TensorField,
+    sampling: GridSampling,
+    options: &DelaunayOptions,
+    control: &Control<'_>,
+) -> Result<GeodesicDelaunay, DelaunayError> {
+    if grid.ndim() != 2 {
+        return Err(DelaunayError::NotPlanar(grid.ndim()));
+    }
+    let n = grid.len();
+    if sampling.labels.len() != n || sampling.distance.len() != n {
+        return Err(DelaunayError::Size {
+            expected: n,
+            got: sampling.labels.len(),
+        });
+    }
+    let n1 = grid.shape3()[2];
+    let GridSampling {
+        samples,
+        distance,
+        labels,
+        radii,
+        visited,
+        ..
+    } = sampling;
+    let cells: Vec<usize> = samples.iter().map(|p| p[0] * n1 + p[1]).collect();
+    let sampler = TensorSampler::resume(grid, metric, distance, labels, control)?;
+    repair(grid, sampler, cells, radii, visited, options, control)
+}
+
+/// The repair rounds of [`geodesic_delaunay`] over any local-front sampler.
+fn repair<F: Front>(
+    grid: &Grid,
+    mut sampler: F,
+    mut cells: Vec<usize>,
+    mut radii: Vec<f64>,
+    visited: usize,
+    options: &DelaunayOptions,
+    control: &Control<'_>,
+) -> Result<GeodesicDelaunay, DelaunayError> {
+    let n = grid.len();
+    let [_, n0, n1] = grid.shape3();
+    let sp = grid.spacing3();
+    let spacing = [sp[1], sp[2]];
+    let max_added = options.max_added.unwrap_or(n);
     let mut repaired = RepairCounts::default();
     let mut added = 0;
     let mut rounds = 0;

@@ -150,6 +150,14 @@ pub enum SamplingError {
     /// Every cell is a wall: there is nothing to sample.
     #[error("every cell is a wall")]
     NoOpenCell,
+    /// The tensor field's dimension is not the grid's.
+    #[error("the tensor field is {field}D but the grid is {grid}D")]
+    Dimension {
+        /// The field's dimension.
+        field: usize,
+        /// The grid's dimension.
+        grid: usize,
+    },
     /// The caller raised the cancel flag.
     #[error("cancelled")]
     Cancelled,
@@ -178,11 +186,71 @@ pub fn farthest_point_sampling(
     options: &SamplingOptions,
     control: &Control<'_>,
 ) -> Result<GridSampling, SamplingError> {
+    check_options(options, grid.len())?;
+    sample_with(grid, Sampler::new(grid, cost), options, control)
+}
+
+/// What the farthest-point driver ([`sample_with`]) and the geodesic
+/// Delaunay repair need of a local-front sampler: the isotropic [`Sampler`]
+/// and the Riemannian one of [`super::tensor_farthest`].
+pub(crate) trait Front {
+    /// `U` per cell.
+    fn distance(&self) -> &[f64];
+    /// Labels per cell.
+    fn labels(&self) -> &[i32];
+    /// The largest finite `U` (0 before any sample).
+    fn covering_radius(&self) -> f64;
+    /// The cell with the largest finite `U`.
+    fn farthest(&self) -> Option<usize>;
+    /// Forgets every sample.
+    fn clear(&mut self);
+    /// Adds the sample `s` with label `label` by a local front that only lowers `U`.
+    fn add(&mut self, s: usize, label: i32, control: &Control<'_>) -> Result<(), SamplingError>;
+    /// Hands back `U`, the labels and the cells visited.
+    fn into_parts(self) -> (Vec<f64>, Vec<i32>, usize);
+    /// True if cell `i` is a wall.
+    fn is_wall(&self, i: usize) -> bool;
+}
+
+impl Front for Sampler<'_> {
+    fn distance(&self) -> &[f64] {
+        &self.u
+    }
+    fn labels(&self) -> &[i32] {
+        &self.labels
+    }
+    fn covering_radius(&self) -> f64 {
+        Sampler::covering_radius(self)
+    }
+    fn farthest(&self) -> Option<usize> {
+        Sampler::farthest(self)
+    }
+    fn clear(&mut self) {
+        Sampler::clear(self);
+    }
+    fn add(&mut self, s: usize, label: i32, control: &Control<'_>) -> Result<(), SamplingError> {
+        Sampler::add(self, s, label, control)
+    }
+    fn into_parts(self) -> (Vec<f64>, Vec<i32>, usize) {
+        Sampler::into_parts(self)
+    }
+    fn is_wall(&self, i: usize) -> bool {
+        self.cost.is_wall(i)
+    }
+}
+
+/// The farthest-point loop over any local-front sampler `s` (fresh, of
+/// `grid`'s size): seeds, the first sample, then the farthest cell until
+/// the count or the radius. The options must have passed [`check_options`].
+pub(crate) fn sample_with<F: Front>(
+    grid: &Grid,
+    mut s: F,
+    options: &SamplingOptions,
+    control: &Control<'_>,
+) -> Result<GridSampling, SamplingError> {
     let n = grid.len();
-    check_options(options, n)?;
-    let mut s = Sampler::new(grid, cost);
     let first_open = (0..n)
-        .find(|&i| !cost.is_wall(i))
+        .find(|&i| !s.is_wall(i))
         .ok_or(SamplingError::NoOpenCell)?;
     let mut samples: Vec<usize> = Vec::new();
     let mut radii: Vec<f64> = Vec::new();
@@ -206,10 +274,10 @@ pub fn farthest_point_sampling(
             )));
         }
         let i = grid.linear(idx);
-        if cost.is_wall(i) {
+        if s.is_wall(i) {
             return Err(bad(format!("cell {seed:?} is a wall")));
         }
-        if s.u[i] == 0.0 {
+        if s.distance()[i] == 0.0 {
             return Err(bad(format!("cell {seed:?} is already a seed")));
         }
         if control.is_cancelled() {
@@ -253,21 +321,22 @@ pub fn farthest_point_sampling(
     control.report(1.0);
     let covering_radius = s.covering_radius();
     let ndim = grid.ndim();
+    let (distance, labels, visited) = s.into_parts();
     Ok(GridSampling {
         samples: samples
             .into_iter()
             .map(|i| grid.unravel(i)[3 - ndim..].to_vec())
             .collect(),
-        distance: s.u,
-        labels: s.labels,
+        distance,
+        labels,
         radii,
         covering_radius,
         stop,
-        visited: s.visited,
+        visited,
     })
 }
 
-fn check_options(options: &SamplingOptions, cells: usize) -> Result<(), SamplingError> {
+pub(crate) fn check_options(options: &SamplingOptions, cells: usize) -> Result<(), SamplingError> {
     if options.count.is_none() && options.radius.is_none() {
         return Err(SamplingError::NoStopRule);
     }

@@ -3,6 +3,8 @@
 //! * [`farthest`]: farthest-point sampling of a 2D or 3D grid under an
 //!   isotropic cost, with local fronts (only the cells that get closer to a
 //!   new sample are recomputed), optional fixed seeds, a count or a radius.
+//! * [`tensor_farthest`]: the same under a Riemannian metric (a tensor
+//!   field), with the anisotropic solver's adaptive stencils.
 //! * [`delaunay`]: geodesic Voronoi adjacency and vertices, the dual
 //!   (geodesic Delaunay) triangulation and the repair of its failure modes.
 //! * [`lloyd`]: geodesic Lloyd (centroidal Voronoi) relaxation.
@@ -11,8 +13,10 @@
 pub mod delaunay;
 pub mod farthest;
 pub mod lloyd;
+pub mod tensor_farthest;
 pub mod triangulation;
 
 pub use farthest::{
     farthest_point_sampling, GridSampling, SamplingError, SamplingOptions, SamplingStop,
 };
+pub use tensor_farthest::tensor_farthest_point_sampling;
