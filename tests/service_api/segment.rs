@@ -32,6 +32,7 @@ async fn npy_f64(app: &TestApp, reference: &serde_json::Value) -> Vec<f64> {
         .array
     {
         ArrayData::F64(a) => a.iter().copied().collect(),
+        ArrayData::I32(a) => a.iter().map(|&v| f64::from(v)).collect(),
         other => panic!("{:?}", other.dtype()),
     }
 }
@@ -377,6 +378,63 @@ async fn sample_refuses_bad_counts_and_seeds_naming_the_field() {
     )
     .await;
     assert_eq!(v["field"], "seeds[1]", "{v}");
+    // A tensor metric instead of a cost: both, or neither, is refused by name.
+    let metric = json!({"kind": "constant", "shape": [8, 8], "components": [4.0, 0.0, 1.0]});
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/sample",
+            json!({"cost": {"constant": 1.0, "shape": [8, 8]}, "metric": metric, "count": 4}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "metric", "{v}");
+    let v = problem(
+        post(&app, "/v1/grid/sample", json!({"count": 4})).await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "cost", "{v}");
+}
+
+#[tokio::test]
+async fn sample_under_a_tensor_metric_stretches_the_cells() {
+    let app = spawn(|_| {}).await;
+    // M = diag(4, 1): unit steps cost 2 along axis 0 and 1 along axis 1, so
+    // the cells are twice as long along axis 1.
+    let res = post(
+        &app,
+        "/v1/grid/sample",
+        json!({
+            "metric": {"kind": "constant", "shape": [60, 60], "components": [4.0, 0.0, 1.0]},
+            "count": 30,
+        }),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let labels = npy_f64(&app, &body["labels"]).await;
+    let (mut s0, mut s1) = (vec![[0.0f64; 3]; 30], vec![[0.0f64; 3]; 30]);
+    for (i, &l) in labels.iter().enumerate() {
+        let (r, c) = ((i / 60) as f64, (i % 60) as f64);
+        let l = l as usize;
+        s0[l][0] += 1.0;
+        s0[l][1] += r;
+        s0[l][2] += r * r;
+        s1[l][0] += 1.0;
+        s1[l][1] += c;
+        s1[l][2] += c * c;
+    }
+    let var = |s: [f64; 3]| s[2] / s[0] - (s[1] / s[0]).powi(2);
+    let (v0, v1): (f64, f64) = (
+        s0.iter().map(|&s| var(s)).sum(),
+        s1.iter().map(|&s| var(s)).sum(),
+    );
+    // Border cells are cut; the mean stretch is still well above 1.
+    let stretch = (v1 / v0).sqrt();
+    assert!((1.5..2.6).contains(&stretch), "{stretch}");
 }
 
 #[tokio::test]

@@ -51,7 +51,7 @@ impl Builder {
     /// Appends `bytes` as a buffer view and an accessor over it; returns
     /// the accessor's index.
     fn push(&mut self, bytes: &[u8], target: u32, accessor: serde_json::Value) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let view = self.views.len();
@@ -238,7 +238,7 @@ pub fn write_glb(mesh: &TriMesh, props: &[VertexProperty<'_>]) -> Vec<u8> {
         // Points: a triangle primitive needs at least one face.
         primitive["mode"] = 0.into();
     }
-    while b.bin.len() % 4 != 0 {
+    while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
     }
     let document = serde_json::json!({
@@ -253,7 +253,7 @@ pub fn write_glb(mesh: &TriMesh, props: &[VertexProperty<'_>]) -> Vec<u8> {
     });
     // Serialising a `Value` of numbers and strings cannot fail.
     let mut json = serde_json::to_vec(&document).unwrap_or_default();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + b.bin.len();
