@@ -294,9 +294,21 @@ impl Jobs {
             self.config.poll,
         );
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        // The time limit fires on time, not at the next heartbeat: with a
+        // period of `poll`, a job could otherwise run up to `poll` past it
+        // (and finish, ignoring its limit).
+        let deadline = tokio::time::Instant::now() + limit;
+        let mut timed_out = false;
         let mut last_ok = Instant::now();
         loop {
-            tick.tick().await;
+            tokio::select! {
+                _ = tick.tick() => {}
+                _ = tokio::time::sleep_until(deadline), if !timed_out => {
+                    timed_out = true;
+                    flags.stop(StopReason::TimeLimit);
+                    continue;
+                }
+            }
             if started.elapsed() >= limit {
                 flags.stop(StopReason::TimeLimit);
             }
