@@ -364,26 +364,7 @@ pub fn geodesic_delaunay(
     options: &DelaunayOptions,
     control: &Control<'_>,
 ) -> Result<GeodesicDelaunay, DelaunayError> {
-    if grid.ndim() != 2 {
-        return Err(DelaunayError::NotPlanar(grid.ndim()));
-    }
-    let n = grid.len();
-    if sampling.labels.len() != n || sampling.distance.len() != n {
-        return Err(DelaunayError::Size {
-            expected: n,
-            got: sampling.labels.len(),
-        });
-    }
-    let n1 = grid.shape3()[2];
-    let GridSampling {
-        samples,
-        distance,
-        labels,
-        radii,
-        visited,
-        ..
-    } = sampling;
-    let cells: Vec<usize> = samples.iter().map(|p| p[0] * n1 + p[1]).collect();
+    let (cells, distance, labels, radii, visited) = unpack(grid, sampling)?;
     let sampler = Sampler::resume(grid, cost, distance, labels);
     repair(grid, sampler, cells, radii, visited, options, control)
 }
@@ -418,6 +399,18 @@ pub fn geodesic_delaunay_tensor(
     options: &DelaunayOptions,
     control: &Control<'_>,
 ) -> Result<GeodesicDelaunay, DelaunayError> {
+    let (cells, distance, labels, radii, visited) = unpack(grid, sampling)?;
+    let sampler = TensorSampler::resume(grid, metric, distance, labels, control)?;
+    repair(grid, sampler, cells, radii, visited, options, control)
+}
+
+/// What the repair needs of a 2D sampling: the sample cells (flat), the
+/// distance, labels, radii and visit count, after checking the sizes.
+#[allow(clippy::type_complexity)]
+fn unpack(
+    grid: &Grid,
+    sampling: GridSampling,
+) -> Result<(Vec<usize>, Vec<f64>, Vec<i32>, Vec<f64>, usize), DelaunayError> {
     if grid.ndim() != 2 {
         return Err(DelaunayError::NotPlanar(grid.ndim()));
     }
@@ -438,8 +431,7 @@ pub fn geodesic_delaunay_tensor(
         ..
     } = sampling;
     let cells: Vec<usize> = samples.iter().map(|p| p[0] * n1 + p[1]).collect();
-    let sampler = TensorSampler::resume(grid, metric, distance, labels, control)?;
-    repair(grid, sampler, cells, radii, visited, options, control)
+    Ok((cells, distance, labels, radii, visited))
 }
 
 /// The repair rounds of [`geodesic_delaunay`] over any local-front sampler.
