@@ -7,7 +7,7 @@ use geodex::numerics::mesh::paths::{trace_path, PathLocation};
 use geodex::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
 use geodex::numerics::mesh::shapes::{flat_square, great_circle, icosphere};
 use geodex::numerics::mesh::{
-    mesh_distance, norm, sub, HeatOptions, HeatSolver, MeshDistanceOptions, MeshMethod,
+    mesh_distance, norm, sub, HeatOptions, HeatSolver, Laplacian, MeshDistanceOptions, MeshMethod,
     SurfacePoint, Topology, TriMesh,
 };
 use geodex::numerics::Control;
@@ -163,12 +163,11 @@ fn face_source_matches_inserted_vertex() {
         (mean, max)
     };
     // (method, bound on the max gap in edge lengths, whether the bound must
-    // also reject the snapped source). The heat method's `t = h²` follows
-    // the mean edge length, which the split changes: its two answers differ
-    // by its own error (a fifth of an edge here), as much as snapping does.
+    // also reject the snapped source). The heat method's error near a
+    // source (its `t = h²` smoothing) is as large as snapping's.
     for (method, bound, sharp) in [
         (MeshMethod::FastMarching, 0.05, true),
-        (MeshMethod::Heat, 0.3, false),
+        (MeshMethod::Heat, 0.75, false),
         (MeshMethod::Dijkstra, 0.05, true),
         (MeshMethod::Exact, 1e-9, true),
     ] {
@@ -182,8 +181,25 @@ fn face_source_matches_inserted_vertex() {
         );
         let d2 = solve(&m2, &[SurfacePoint::Vertex(c)], method);
         let snapped = solve(&m, &[SurfacePoint::Vertex(corner)], method);
-        let (mean, max) = gap(&d1, &d2);
-        let (snap_mean, snap_max) = gap(&snapped, &d2);
+        // The heat method is compared with the exact distance from the
+        // point instead: on the split mesh its robust Laplacian flips the
+        // split's edges, so the two heat answers differ by the method's own
+        // error near the source (0.6 h here), not by the source's handling.
+        let reference = if method == MeshMethod::Heat {
+            solve(
+                &m,
+                &[SurfacePoint::Face {
+                    face: f as u32,
+                    bary: b,
+                }],
+                MeshMethod::Exact,
+            )
+        } else {
+            d2
+        };
+        let (mean, max) = gap(&d1, &reference);
+        let (snap_mean, snap_max) = gap(&snapped, &reference);
+
         eprintln!(
             "{method:?}: face vs inserted vertex mean {mean:.2e}, max {max:.2e}; \
              snapped to a corner: mean {snap_mean:.2e}, max {snap_max:.2e} (h = {h:.3})"
@@ -326,6 +342,7 @@ fn heat_factorisation_is_reused_and_t_is_m_h2() {
     let opts = HeatOptions {
         m: 2.0,
         underflow_guard: false,
+        ..Default::default()
     };
     let solver = HeatSolver::new(&m, &topo, &opts, &Control::new()).unwrap();
     let h = m.mean_edge_length();
@@ -453,5 +470,266 @@ fn farthest_point_sampling_covers_the_sphere() {
         .unwrap();
         assert!(r.covering_radius <= 0.5);
         assert!(r.field.distance.iter().all(|&x| x <= 0.5));
+    }
+}
+
+/// Heat distances from vertex 0 with the given Laplacian.
+fn heat_with(mesh: &TriMesh, laplacian: Laplacian) -> (Vec<f64>, HeatSolver) {
+    let topo = Topology::new(mesh);
+    let opts = HeatOptions {
+        laplacian,
+        ..Default::default()
+    };
+    let solver = HeatSolver::new(mesh, &topo, &opts, &Control::new()).unwrap();
+    let d = solver
+        .distance(
+            mesh,
+            &[SurfacePoint::Vertex(0)],
+            f64::INFINITY,
+            &Control::new(),
+        )
+        .unwrap()
+        .distance;
+    (d, solver)
+}
+
+/// Mean relative error of `d` against `exact` over vertices with
+/// `exact > cut`.
+fn mean_relative_error(d: &[f64], exact: &[f64], cut: f64) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (a, e) in d.iter().zip(exact) {
+        if *e > cut {
+            sum += (a - e).abs() / e;
+            count += 1;
+        }
+    }
+    sum / count as f64
+}
+
+/// An icosphere made as badly shaped as a scan: its vertices are moved, on
+/// the sphere, most of the way towards a neighbour (needles: one edge 1-5 %
+/// of the others) or towards the middle of the opposite edge of one of
+/// their faces (slivers: an angle close to 180°), then as many random
+/// edge flips as there are faces make the connectivity far from Delaunay
+/// (long obtuse triangles). A moved vertex locks its neighbours, so every
+/// move stays inside an unmoved star, and a flip that would fold a face
+/// over (its normal against the old one) or duplicate an edge is skipped.
+fn needles_and_slivers(level: u32) -> TriMesh {
+    let m = icosphere(level, 1.0);
+    let topo = Topology::new(&m);
+    let mut pos: Vec<[f64; 3]> = (0..m.num_vertices() as u32)
+        .map(|v| m.position(v))
+        .collect();
+    let mut locked = vec![false; pos.len()];
+    let mut state = 0x2545_f491_4f6c_dd1d_u64;
+    let mut rnd = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut needles, mut slivers) = (0, 0);
+    for v in 1..pos.len() as u32 {
+        if locked[v as usize] || rnd() < 0.3 {
+            continue;
+        }
+        let faces = topo.faces_of(v);
+        let f = m.faces()[faces[(rnd() * faces.len() as f64) as usize % faces.len()] as usize];
+        let k = f.iter().position(|&x| x == v).unwrap();
+        let (w1, w2) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+        let target = if rnd() < 0.5 {
+            needles += 1;
+            m.position(w1)
+        } else {
+            slivers += 1;
+            let (a, b) = (m.position(w1), m.position(w2));
+            [
+                (a[0] + b[0]) / 2.0,
+                (a[1] + b[1]) / 2.0,
+                (a[2] + b[2]) / 2.0,
+            ]
+        };
+        let t = 0.95 + 0.04 * rnd();
+        let p = m.position(v);
+        let q = [0, 1, 2].map(|c| p[c] + t * (target[c] - p[c]));
+        let r = norm(q);
+        pos[v as usize] = q.map(|c| c / r);
+        locked[v as usize] = true;
+        for &g in faces {
+            for &x in &m.faces()[g as usize] {
+                locked[x as usize] = true;
+            }
+        }
+    }
+    assert!(
+        needles > 50 && slivers > 50,
+        "{needles} needles, {slivers} slivers"
+    );
+    // Random flips, with the two faces of every undirected edge kept up to date.
+    let mut faces = m.faces().to_vec();
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut edge_faces = std::collections::HashMap::<(u32, u32), [usize; 2]>::new();
+    for (fi, f) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let e = edge_faces
+                .entry(key(f[k], f[(k + 1) % 3]))
+                .or_insert([usize::MAX; 2]);
+            e[if e[0] == usize::MAX { 0 } else { 1 }] = fi;
+        }
+    }
+    let normal = |p: &[[f64; 3]], f: [u32; 3]| {
+        let (a, b, c) = (p[f[0] as usize], p[f[1] as usize], p[f[2] as usize]);
+        let (u, v) = (sub(b, a), sub(c, a));
+        [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut flips = 0;
+    for _ in 0..4 * faces.len() {
+        if flips >= faces.len() {
+            break;
+        }
+        let fa = (rnd() * faces.len() as f64) as usize % faces.len();
+        let k = (rnd() * 3.0) as usize % 3;
+        let (a, b, c) = (faces[fa][k], faces[fa][(k + 1) % 3], faces[fa][(k + 2) % 3]);
+        let pair = edge_faces[&key(a, b)];
+        let fb = if pair[0] == fa { pair[1] } else { pair[0] };
+        let kb = (0..3).find(|&j| faces[fb][j] == b).unwrap();
+        let d = faces[fb][(kb + 2) % 3];
+        if c == d || edge_faces.contains_key(&key(c, d)) {
+            continue;
+        }
+        let (na, nb) = ([c, a, d], [d, b, c]);
+        let n0 = normal(&pos, faces[fa]);
+        if dot(normal(&pos, na), n0) <= 0.0 || dot(normal(&pos, nb), n0) <= 0.0 {
+            continue;
+        }
+        faces[fa] = na;
+        faces[fb] = nb;
+        edge_faces.remove(&key(a, b));
+        edge_faces.insert(key(c, d), [fa, fb]);
+        for (e, from, to) in [(key(b, c), fa, fb), (key(a, d), fb, fa)] {
+            let slot = edge_faces.get_mut(&e).unwrap();
+            for x in slot.iter_mut() {
+                if *x == from {
+                    *x = to;
+                }
+            }
+        }
+        flips += 1;
+    }
+    assert!(flips > faces.len() / 2, "{flips} flips");
+    TriMesh::new(pos, faces).unwrap()
+}
+
+/// Sharp & Crane's robust Laplacian against the plain cotangent one on a
+/// mesh full of needles and slivers, both measured against the exact
+/// polyhedral distance on that same mesh: the issue asks for at most a
+/// third of the error.
+#[test]
+fn robust_laplacian_cuts_the_heat_error_on_needles_and_slivers() {
+    let mesh = needles_and_slivers(4);
+    let exact = solve(&mesh, &[SurfacePoint::Vertex(0)], MeshMethod::Exact);
+    let (robust, solver) = heat_with(&mesh, Laplacian::Robust);
+    let (cotan, _) = heat_with(&mesh, Laplacian::Cotangent);
+    assert!(solver.flips() > 100, "only {} flips", solver.flips());
+    assert!(!solver.tufted());
+    let e_robust = mean_relative_error(&robust, &exact, 0.1);
+    let e_cotan = mean_relative_error(&cotan, &exact, 0.1);
+    eprintln!(
+        "needles and slivers, {} vertices: mean relative error robust {e_robust:.4} \
+         ({} flips), cotangent {e_cotan:.4}",
+        mesh.num_vertices(),
+        solver.flips()
+    );
+    assert!(
+        e_robust <= e_cotan / 3.0,
+        "robust {e_robust}, cotangent {e_cotan}"
+    );
+    // On the icosphere itself (already Delaunay) both agree.
+    let clean = icosphere(4, 1.0);
+    let (a, _) = heat_with(&clean, Laplacian::Robust);
+    let (b, _) = heat_with(&clean, Laplacian::Cotangent);
+    let diff = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-6, "{diff}");
+}
+
+/// Two icospheres glued along one edge (four faces on it: a non-manifold
+/// edge) and a fin standing on a flat square (three faces on each of its
+/// base edges): the heat method, through the tufted cover, reaches every
+/// vertex with a finite distance, and on the first sphere it agrees with
+/// the distance on that sphere alone.
+#[test]
+fn heat_is_finite_on_non_manifold_meshes() {
+    // The second sphere is the first reflected through the plane that
+    // holds edge (a, b) and is normal to the edge's midpoint.
+    let s = icosphere(3, 1.0);
+    let n = s.num_vertices() as u32;
+    let f0 = s.faces()[0];
+    let (a, b) = (f0[0], f0[1]);
+    let (pa, pb) = (s.position(a), s.position(b));
+    let mid = [0, 1, 2].map(|c| (pa[c] + pb[c]) / 2.0);
+    let nrm = norm(mid);
+    let nn = mid.map(|c| c / nrm);
+    let mut pos: Vec<[f64; 3]> = (0..n).map(|v| s.position(v)).collect();
+    for v in 0..n {
+        let p = s.position(v);
+        let d = (0..3).map(|c| (p[c] - mid[c]) * nn[c]).sum::<f64>();
+        pos.push([0, 1, 2].map(|c| p[c] - 2.0 * d * nn[c]));
+    }
+    let map = |v: u32| if v == a || v == b { v } else { v + n };
+    let mut faces = s.faces().to_vec();
+    for f in s.faces() {
+        faces.push([map(f[0]), map(f[2]), map(f[1])]);
+    }
+    let glued = TriMesh::new(pos, faces).unwrap();
+    let topo = Topology::new(&glued);
+    assert_eq!(topo.non_manifold_edges, 1);
+    let (d, solver) = heat_with(&glued, Laplacian::Robust);
+    assert!(solver.tufted());
+    let used: std::collections::HashSet<u32> = glued.faces().iter().flatten().copied().collect();
+    for &v in &used {
+        assert!(d[v as usize].is_finite(), "vertex {v}: {}", d[v as usize]);
+    }
+    let (alone, _) = heat_with(&s, Laplacian::Robust);
+    let e = mean_relative_error(&d[..n as usize], &alone, 0.1);
+    assert!(e < 0.02, "first sphere: {e}");
+    // Far side of the second sphere: beyond the glued edge.
+    assert!(d[(n + n - 1) as usize] > 0.5 || !used.contains(&(2 * n - 1)));
+
+    // A fin: a row of vertical triangles on the middle row of a square.
+    let sq = flat_square(10, 1.0, 0.0);
+    let mut pos: Vec<[f64; 3]> = (0..sq.num_vertices() as u32)
+        .map(|v| sq.position(v))
+        .collect();
+    let mut faces = sq.faces().to_vec();
+    let row = 5 * 11;
+    let top0 = pos.len() as u32;
+    for j in 0..=10u32 {
+        let p = sq.position(row + j);
+        pos.push([p[0], p[1], 0.3]);
+    }
+    for j in 0..10u32 {
+        let (u, v) = (row + j, row + j + 1);
+        let (tu, tv) = (top0 + j, top0 + j + 1);
+        faces.push([u, v, tv]);
+        faces.push([u, tv, tu]);
+    }
+    let fin = TriMesh::new(pos, faces).unwrap();
+    let topo = Topology::new(&fin);
+    assert!(topo.non_manifold_edges >= 10, "{}", topo.non_manifold_edges);
+    let (d, solver) = heat_with(&fin, Laplacian::Robust);
+    assert!(solver.tufted());
+    assert!(d.iter().all(|x| x.is_finite()), "{d:?}");
+    // The fin's top is 0.3 above its base: its distance exceeds the base's.
+    for j in 0..=10u32 {
+        assert!(d[(top0 + j) as usize] > d[(row + j) as usize] + 0.08);
     }
 }

@@ -14,12 +14,12 @@ use std::sync::Arc;
 
 use clap::Args;
 
-use super::mesh_distance::{load_mesh_file, write_npy, MeshMethodArg, One};
+use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, One};
 use super::run::{run_operation, CliRunError};
 use crate::io::mesh::write::encode_by_extension;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
-use crate::ops::spec::mesh::{HeatSpec, MeshMethodSpec};
+use crate::ops::spec::mesh::MeshMethodSpec;
 use crate::ops::spec::shape::SymmetrySpec;
 use crate::ops::{DynOperation, OpOutput};
 
@@ -41,6 +41,9 @@ pub struct DistanceMatrixArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
+    /// Heat method Laplacian.
+    #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
+    pub laplacian: LaplacianArg,
     /// Take the smaller of d(i, j) and d(j, i) instead of their average.
     #[arg(long)]
     pub min: bool,
@@ -70,6 +73,9 @@ pub struct EmbedArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
+    /// Heat method Laplacian.
+    #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
+    pub laplacian: LaplacianArg,
     /// Output: the canonical form, the input's faces at the embedded positions
     /// (`.ply`, `.obj`, `.json` or `.glb`, after the extension).
     #[arg(long, value_name = "FORM.ply")]
@@ -114,7 +120,7 @@ pub fn run_distance_matrix(args: &DistanceMatrixArgs) -> Result<(), String> {
         } else {
             SymmetrySpec::Average
         },
-        heat: HeatSpec { m: args.heat_m },
+        heat: args.laplacian.heat(args.heat_m),
     };
     let output = run_on_mesh(Box::new(request), &args.mesh)?;
     let matrix = output
@@ -141,7 +147,7 @@ pub fn run_embed(args: &EmbedArgs) -> Result<(), String> {
             tolerance: 1e-6,
         }),
         method: method(args.method),
-        heat: HeatSpec { m: args.heat_m },
+        heat: args.laplacian.heat(args.heat_m),
     };
     let output = run_on_mesh(Box::new(request), &args.mesh)?;
     let form = output

@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use super::lock;
-use crate::numerics::mesh::HeatSolver;
+use crate::numerics::mesh::{HeatSolver, Laplacian};
 use crate::ops::spec::mesh::MeshInput;
 use crate::ops::InputArray;
 
@@ -27,14 +27,14 @@ pub enum CacheKey {
     /// The decoded mesh of a dataset.
     Mesh(String),
     /// The heat factorisation of a mesh dataset for one time-step factor
-    /// (`m`'s bits).
-    Heat(String, u64),
+    /// (`m`'s bits) and one Laplacian.
+    Heat(String, u64, Laplacian),
 }
 
 impl CacheKey {
     fn dataset(&self) -> &str {
         match self {
-            CacheKey::Array(id) | CacheKey::Mesh(id) | CacheKey::Heat(id, _) => id,
+            CacheKey::Array(id) | CacheKey::Mesh(id) | CacheKey::Heat(id, ..) => id,
         }
     }
 }
@@ -222,7 +222,7 @@ mod tests {
         c.insert(CacheKey::Array("a".into()), array(1), 40);
         c.insert(CacheKey::Array("b".into()), array(1), 40);
         assert!(c.get(&CacheKey::Array("a".into())).is_some()); // a is now newer than b
-        let heat = CacheKey::Heat("m".into(), 1);
+        let heat = CacheKey::Heat("m".into(), 1, Laplacian::Robust);
         let _slot = c.heat_slot(heat.clone());
         assert_eq!(c.bytes(), 80);
         c.resize(&heat, 50); // b goes, a stays

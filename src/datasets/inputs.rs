@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use super::{DatasetStore, StoreError};
-use crate::numerics::mesh::{HeatSolver, MeshSolveError};
+use crate::numerics::mesh::{HeatOptions, HeatSolver, MeshSolveError};
 use crate::ops::grid_paths::DistanceCache;
 use crate::ops::spec::mesh::MeshInput;
 use crate::ops::{InputArray, Inputs};
@@ -115,10 +115,10 @@ impl Inputs for StoreInputs {
     fn heat_solver(
         &self,
         id: &str,
-        m: f64,
+        options: &HeatOptions,
         build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
     ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
-        self.store.heat_solver(id, m, build)
+        self.store.heat_solver(id, options, build)
     }
 
     fn distance_cache(&self) -> Option<&DistanceCache> {

@@ -14,7 +14,7 @@ use super::{lock, new_id, DatasetKind, DatasetMeta, DatasetStore, SourceFormat, 
 use crate::io::mesh::write::{write_ply, VertexProperty};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits, MeshReport};
 use crate::io::DType;
-use crate::numerics::mesh::{HeatSolver, TriMesh};
+use crate::numerics::mesh::{HeatOptions, HeatSolver, TriMesh};
 
 pub use crate::ops::spec::mesh::MeshInput;
 
@@ -120,16 +120,16 @@ impl DatasetStore {
         Ok(input)
     }
 
-    /// The heat solver of mesh dataset `id` with time-step factor `m`,
-    /// built by `build` on first use (on the caller's thread: the solver
-    /// pool) and kept for later queries.
+    /// The heat solver of mesh dataset `id` with the options `options`
+    /// (time-step factor and Laplacian), built by `build` on first use (on
+    /// the caller's thread: the solver pool) and kept for later queries.
     pub fn heat_solver<E>(
         &self,
         id: &str,
-        m: f64,
+        options: &HeatOptions,
         build: impl FnOnce() -> Result<HeatSolver, E>,
     ) -> Result<(Arc<HeatSolver>, bool), E> {
-        let key = CacheKey::Heat(id.to_string(), m.to_bits());
+        let key = CacheKey::Heat(id.to_string(), options.m.to_bits(), options.laplacian);
         let slot = self.memory.heat_slot(key.clone());
         let mut guard = lock(&slot);
         if let Some(s) = guard.as_ref() {

@@ -126,12 +126,7 @@ impl Operation for MeshDistanceMatrixRequest {
         let (heat, info) = if method == MeshMethod::Heat {
             let (solver, cached, secs) =
                 heat_solver(inputs, &self.mesh, &input, &self.heat, control)?;
-            let info = HeatInfo {
-                t: solver.t(),
-                m: self.heat.m,
-                cached,
-                factor_seconds: secs,
-            };
+            let info = HeatInfo::of(&solver, self.heat.m, cached, secs);
             (Some(solver), Some(info))
         } else {
             (None, None)

@@ -55,7 +55,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use crate::io::ArrayData;
-use crate::numerics::mesh::{HeatSolver, MeshSolveError};
+use crate::numerics::mesh::{HeatOptions, HeatSolver, MeshSolveError};
 use crate::numerics::Control;
 
 /// One operation of the service: its request schema and how to run it.
@@ -236,13 +236,13 @@ pub trait Inputs {
         None
     }
 
-    /// The heat-method solver of mesh `id` with factor `m`: from the
+    /// The heat-method solver of mesh `id` with `options`: from the
     /// caller's cache when it keeps one, else built by `build` (the default
     /// builds every time).
     fn heat_solver(
         &self,
         _id: &str,
-        _m: f64,
+        _options: &HeatOptions,
         build: &mut dyn FnMut() -> Result<HeatSolver, MeshSolveError>,
     ) -> Result<(Arc<HeatSolver>, bool), MeshSolveError> {
         build().map(|s| (Arc::new(s), false))

@@ -6,6 +6,16 @@
 //!    (`L_ij = −½(cot α_ij + cot β_ij)`, `L_ii = −Σ_j L_ij`, symmetric
 //!    positive semi-definite), `δ` the sources (1 at a source vertex, the
 //!    barycentric weights at the corners of a source face).
+//!
+//!    By default ([`Laplacian::Robust`]) `M`, `L`, the gradient and the
+//!    divergence are those of the intrinsic Delaunay triangulation of the
+//!    mollified mesh (its tufted cover when the mesh is not an oriented
+//!    manifold), as Sharp & Crane (2020) propose: every cotangent weight is
+//!    then non-negative, and needles, slivers, zero-area faces and
+//!    non-manifold edges no longer spoil the solution
+//!    ([`super::intrinsic`]). The vertices are the mesh's own, so the
+//!    distance is returned at the same vertices. [`Laplacian::Cotangent`]
+//!    keeps the mesh's own triangles.
 //! 2. Normalise the gradient per face: `X = −∇u / |∇u|`.
 //! 3. Solve the Poisson equation `L φ = −∇·X` (integrated divergence
 //!    `(∇·X)_i = ½ Σ_f cot θ₁ (e₁·X) + cot θ₂ (e₂·X)`), with the right-hand
@@ -35,9 +45,23 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 
 use super::dijkstra::dijkstra_distance;
+use super::intrinsic::{cotangents, layout, triangle_area, IntrinsicMesh, DEFAULT_MOLLIFY};
 use super::sources::VertexGraph;
-use super::{cross, dot, norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
+use super::{norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
 use crate::numerics::Control;
+
+/// Which Laplacian the heat method assembles.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum Laplacian {
+    /// The cotangent Laplacian of the intrinsic Delaunay triangulation of
+    /// the mollified tufted cover ([`IntrinsicMesh::delaunay`]): accurate
+    /// on badly shaped, degenerate and non-manifold meshes (default).
+    #[default]
+    Robust,
+    /// The cotangent Laplacian of the mesh as given (degenerate faces
+    /// dropped).
+    Cotangent,
+}
 
 /// Options of [`HeatSolver::new`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,6 +70,11 @@ pub struct HeatOptions {
     pub m: f64,
     /// Raise `t` where needed so that the heat does not underflow (default true).
     pub underflow_guard: bool,
+    /// The Laplacian (default [`Laplacian::Robust`]).
+    pub laplacian: Laplacian,
+    /// Mollification factor of the robust Laplacian (default
+    /// [`DEFAULT_MOLLIFY`]).
+    pub mollify: f64,
 }
 
 impl Default for HeatOptions {
@@ -53,6 +82,29 @@ impl Default for HeatOptions {
         Self {
             m: 1.0,
             underflow_guard: true,
+            laplacian: Laplacian::Robust,
+            mollify: DEFAULT_MOLLIFY,
+        }
+    }
+}
+
+/// One face of the triangulation the solver works on, laid out in its
+/// plane ([`intrinsic::layout`]).
+#[derive(Debug, Clone, Copy)]
+struct PlanarFace {
+    vertices: [u32; 3],
+    /// `[l0, x, y]`: corners at `(0, 0)`, `(l0, 0)`, `(x, y)`.
+    layout: [f64; 3],
+    /// Cotangents of the corners.
+    cot: [f64; 3],
+}
+
+impl PlanarFace {
+    fn corner(&self, k: usize) -> [f64; 2] {
+        match k {
+            0 => [0.0, 0.0],
+            1 => [self.layout[0], 0.0],
+            _ => [self.layout[1], self.layout[2]],
         }
     }
 }
@@ -64,10 +116,14 @@ pub struct HeatSolver {
     t: f64,
     h: f64,
     mass: Vec<f64>,
-    /// Per face: cotangents of the three corners (0 for degenerate faces).
-    cots: Vec<[f64; 3]>,
-    /// Per face: 2·area (0 for degenerate faces) and unit normal.
-    normals: Vec<([f64; 3], f64)>,
+    /// The faces of the (intrinsic) triangulation, non-degenerate only.
+    faces: Vec<PlanarFace>,
+    /// 1, or ½ on the tufted cover.
+    scale: f64,
+    laplacian: Laplacian,
+    tufted: bool,
+    flips: usize,
+    mollified: f64,
     heat: Llt<usize, f64>,
     poisson: Llt<usize, f64>,
     component: Vec<u32>,
@@ -119,39 +175,38 @@ impl HeatSolver {
             let floor = (2.0 * ecc / 600.0).powi(2);
             t = t.max(floor);
         }
-        let faces = mesh.faces();
+        let tri = match options.laplacian {
+            Laplacian::Robust => IntrinsicMesh::delaunay(mesh, topo, options.mollify, control)?,
+            Laplacian::Cotangent => IntrinsicMesh::extrinsic(mesh),
+        };
+        let scale = tri.scale;
         let mut mass = vec![0.0; n];
-        let mut cots = Vec::with_capacity(faces.len());
-        let mut normals = Vec::with_capacity(faces.len());
-        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * faces.len());
-        for f in faces {
-            let p = f.map(|v| mesh.position(v));
-            let nrm = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-            let a2 = norm(nrm);
-            let scale =
-                dot(sub(p[1], p[0]), sub(p[1], p[0])).max(dot(sub(p[2], p[0]), sub(p[2], p[0])));
-            if !a2.is_finite() || a2 <= 1e-12 * scale {
-                cots.push([0.0; 3]);
-                normals.push(([0.0; 3], 0.0));
+        let mut faces = Vec::with_capacity(tri.faces.len());
+        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * tri.faces.len());
+        for (f, &l) in tri.faces.iter().zip(&tri.lengths) {
+            let area = triangle_area(l[0], l[1], l[2]);
+            if !(area.is_finite() && area > 0.0) {
                 continue;
             }
-            let mut c = [0.0; 3];
+            let c = cotangents(l, area);
             for k in 0..3 {
-                let (e1, e2) = (sub(p[(k + 1) % 3], p[k]), sub(p[(k + 2) % 3], p[k]));
-                c[k] = dot(e1, e2) / a2;
-            }
-            for k in 0..3 {
-                mass[f[k] as usize] += a2 / 6.0;
+                mass[f[k] as usize] += scale * area / 3.0;
                 // The edge opposite corner k joins the other two corners.
                 let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
-                let w = 0.5 * c[k];
+                if i == j {
+                    continue;
+                }
+                let w = 0.5 * scale * c[k];
                 entries.push((i, j, -w));
                 entries.push((j, i, -w));
                 entries.push((i, i, w));
                 entries.push((j, j, w));
             }
-            cots.push(c);
-            normals.push(([nrm[0] / a2, nrm[1] / a2, nrm[2] / a2], a2));
+            faces.push(PlanarFace {
+                vertices: *f,
+                layout: layout(l, area),
+                cot: c,
+            });
         }
         // Every vertex gets a diagonal entry (isolated vertices included).
         for (v, m) in mass.iter_mut().enumerate() {
@@ -216,8 +271,12 @@ impl HeatSolver {
             t,
             h,
             mass,
-            cots,
-            normals,
+            faces,
+            scale,
+            laplacian: options.laplacian,
+            tufted: tri.tufted,
+            flips: tri.flips,
+            mollified: tri.mollified,
             heat,
             poisson,
             component: topo.component.clone(),
@@ -234,9 +293,9 @@ impl HeatSolver {
     /// sizes.
     pub fn approx_bytes(&self) -> usize {
         let n = self.n as f64;
-        let faces = self.cots.len();
+        let faces = self.faces.len();
         let fixed = self.mass.len() * 8
-            + faces * (24 + 32)
+            + faces * std::mem::size_of::<PlanarFace>()
             + self.component.len() * 4
             + (self.graph.offsets.len() + self.graph.neighbours.len()) * 4;
         let per_row = 4.5 * n.max(2.0).log2() + 6.0;
@@ -251,6 +310,26 @@ impl HeatSolver {
     /// The mean edge length `h`.
     pub fn h(&self) -> f64 {
         self.h
+    }
+
+    /// The Laplacian assembled.
+    pub fn laplacian(&self) -> Laplacian {
+        self.laplacian
+    }
+
+    /// Whether the tufted cover was used (non-manifold or misoriented input).
+    pub fn tufted(&self) -> bool {
+        self.tufted
+    }
+
+    /// Number of intrinsic edge flips made (0 for the cotangent Laplacian).
+    pub fn flips(&self) -> usize {
+        self.flips
+    }
+
+    /// The length added to every edge by the mollification.
+    pub fn mollified(&self) -> f64 {
+        self.mollified
     }
 
     /// Heat-method distance from `sources` (two solves), `+inf` beyond
@@ -301,34 +380,32 @@ impl HeatSolver {
         control.report(0.4);
         // Normalised gradient and its integrated divergence.
         let mut div = vec![0.0; n];
-        for (fi, f) in faces.iter().enumerate() {
-            let (nrm, a2) = self.normals[fi];
-            if a2 <= 0.0 {
-                continue;
-            }
-            let p = f.map(|v| mesh.position(v));
+        for face in &self.faces {
+            let f = face.vertices;
+            let p = [0, 1, 2].map(|k| face.corner(k));
             let u = f.map(|v| rhs[(v as usize, 0)]);
-            // ∇u = (1 / 2A) Σ_k u_k (N × e_k), e_k the edge opposite corner k.
-            let mut g = [0.0; 3];
+            // ∇u = (1 / 2A) Σ_k u_k R(e_k), e_k the edge opposite corner k
+            // and R the rotation by +90° (the corners are counter-clockwise).
+            let mut g = [0.0; 2];
             for k in 0..3 {
-                let e = sub(p[(k + 2) % 3], p[(k + 1) % 3]);
-                let r = cross(nrm, e);
-                for c in 0..3 {
-                    g[c] += u[k] * r[c];
-                }
+                let (a, b) = (p[(k + 1) % 3], p[(k + 2) % 3]);
+                let e = [b[0] - a[0], b[1] - a[1]];
+                g[0] -= u[k] * e[1];
+                g[1] += u[k] * e[0];
             }
-            let gn = norm(g);
+            let gn = g[0].hypot(g[1]);
             if !gn.is_finite() || gn <= 0.0 {
                 continue;
             }
-            let x = [-g[0] / gn, -g[1] / gn, -g[2] / gn];
-            let c = self.cots[fi];
+            let x = [-g[0] / gn, -g[1] / gn];
+            let c = face.cot;
             for k in 0..3 {
                 let (i1, i2) = ((k + 1) % 3, (k + 2) % 3);
-                let e1 = sub(p[i1], p[k]);
-                let e2 = sub(p[i2], p[k]);
+                let e1 = [p[i1][0] - p[k][0], p[i1][1] - p[k][1]];
+                let e2 = [p[i2][0] - p[k][0], p[i2][1] - p[k][1]];
+                let (d1, d2) = (e1[0] * x[0] + e1[1] * x[1], e2[0] * x[0] + e2[1] * x[1]);
                 // cot of the angle opposite e1 is at corner i2, opposite e2 at i1.
-                div[f[k] as usize] += 0.5 * (c[i2] * dot(e1, x) + c[i1] * dot(e2, x));
+                div[f[k] as usize] += 0.5 * self.scale * (c[i2] * d1 + c[i1] * d2);
             }
         }
         // Zero mean per component (a closed surface has none; boundaries leak).

@@ -8,6 +8,7 @@
 pub mod dijkstra;
 pub mod fast_marching;
 pub mod heat;
+pub mod intrinsic;
 pub mod paths;
 pub mod sampling;
 pub mod shapes;
@@ -15,7 +16,7 @@ pub mod solve;
 pub mod sources;
 
 pub use fast_marching::{fast_marching_distance, FastMarchingOptions};
-pub use heat::{HeatOptions, HeatSolver};
+pub use heat::{HeatOptions, HeatSolver, Laplacian};
 pub use solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
 pub mod exact;
 

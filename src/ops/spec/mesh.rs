@@ -13,8 +13,8 @@ use super::errors::mesh_solve_error;
 use crate::io::mesh::MeshReport;
 use crate::io::ArrayData;
 use crate::numerics::mesh::{
-    mesh_distance, HeatOptions, HeatSolver, MeshDistance, MeshDistanceOptions, MeshMethod,
-    SurfacePoint, Topology, TriMesh,
+    mesh_distance, HeatOptions, HeatSolver, Laplacian, MeshDistance, MeshDistanceOptions,
+    MeshMethod, SurfacePoint, Topology, TriMesh,
 };
 use crate::numerics::Control;
 use crate::ops::{Inputs, OpError, OpLimits, OpOutput, OutputArray, OutputMesh};
@@ -93,6 +93,28 @@ impl From<MeshMethodSpec> for MeshMethod {
     }
 }
 
+/// The Laplacian of the heat method.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum LaplacianSpec {
+    /// The intrinsic Delaunay Laplacian of the mollified mesh (its tufted
+    /// cover when non-manifold): accurate on scans with needles, slivers,
+    /// zero-area faces and non-manifold edges (Sharp & Crane 2020).
+    #[default]
+    Robust,
+    /// The plain cotangent Laplacian of the mesh's own triangles.
+    Cotangent,
+}
+
+impl From<LaplacianSpec> for Laplacian {
+    fn from(l: LaplacianSpec) -> Self {
+        match l {
+            LaplacianSpec::Robust => Laplacian::Robust,
+            LaplacianSpec::Cotangent => Laplacian::Cotangent,
+        }
+    }
+}
+
 /// Options of the heat method.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -101,11 +123,28 @@ pub struct HeatSpec {
     #[serde(default = "one")]
     #[schema(exclusive_minimum = 0.0)]
     pub m: f64,
+    /// The Laplacian. Default `robust`.
+    #[serde(default)]
+    pub laplacian: LaplacianSpec,
 }
 
 impl Default for HeatSpec {
     fn default() -> Self {
-        Self { m: 1.0 }
+        Self {
+            m: 1.0,
+            laplacian: LaplacianSpec::Robust,
+        }
+    }
+}
+
+impl HeatSpec {
+    /// The core's options.
+    pub fn options(&self) -> HeatOptions {
+        HeatOptions {
+            m: self.m,
+            laplacian: self.laplacian.into(),
+            ..Default::default()
+        }
     }
 }
 
@@ -180,10 +219,39 @@ pub struct HeatInfo {
     pub t: f64,
     /// The factor `m`.
     pub m: f64,
+    /// The Laplacian used.
+    pub laplacian: LaplacianSpec,
+    /// Intrinsic edge flips made by the robust Laplacian (0 for `cotangent`).
+    pub flips: usize,
+    /// True when the tufted cover was used (non-manifold or inconsistently
+    /// oriented mesh).
+    pub tufted: bool,
+    /// Length added to every edge by the mollification (0 when no
+    /// triangle was nearly degenerate).
+    pub mollified: f64,
     /// True when the factorisation came from the cache.
     pub cached: bool,
     /// Seconds spent factoring in this request (0 when cached).
     pub factor_seconds: f64,
+}
+
+impl HeatInfo {
+    /// What `solver` reports, with the request's `m`.
+    pub(crate) fn of(solver: &HeatSolver, m: f64, cached: bool, factor_seconds: f64) -> Self {
+        Self {
+            t: solver.t(),
+            m,
+            laplacian: match solver.laplacian() {
+                Laplacian::Robust => LaplacianSpec::Robust,
+                Laplacian::Cotangent => LaplacianSpec::Cotangent,
+            },
+            flips: solver.flips(),
+            tufted: solver.tufted(),
+            mollified: solver.mollified(),
+            cached,
+            factor_seconds,
+        }
+    }
 }
 
 /// Runs the chosen method, using (and filling) the caller's heat cache.
@@ -203,10 +271,7 @@ pub(crate) fn run_distance(
         method,
         max_distance,
         weights,
-        heat: HeatOptions {
-            m: heat.m,
-            ..Default::default()
-        },
+        heat: heat.options(),
     };
     if method == MeshMethod::Heat {
         let (solver, cached, secs) = heat_solver(inputs, mesh_id, input, heat, control)?;
@@ -219,12 +284,7 @@ pub(crate) fn run_distance(
             control,
         )
         .map_err(mesh_solve_error)?;
-        let info = HeatInfo {
-            t: solver.t(),
-            m: heat.m,
-            cached,
-            factor_seconds: secs,
-        };
+        let info = HeatInfo::of(&solver, heat.m, cached, secs);
         return Ok((d, Some(info)));
     }
     let d = mesh_distance(&input.mesh, &input.topology, sources, &opts, None, control)
@@ -241,19 +301,10 @@ pub(crate) fn heat_solver(
     control: &Control<'_>,
 ) -> Result<(Arc<HeatSolver>, bool, f64), OpError> {
     let started = std::time::Instant::now();
-    let mut build = || {
-        HeatSolver::new(
-            &input.mesh,
-            &input.topology,
-            &HeatOptions {
-                m: heat.m,
-                ..Default::default()
-            },
-            control,
-        )
-    };
+    let options = heat.options();
+    let mut build = || HeatSolver::new(&input.mesh, &input.topology, &options, control);
     let (solver, cached) = inputs
-        .heat_solver(mesh_id, heat.m, &mut build)
+        .heat_solver(mesh_id, &options, &mut build)
         .map_err(mesh_solve_error)?;
     let secs = if cached {
         0.0
