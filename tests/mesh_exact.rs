@@ -2,7 +2,7 @@
 //! closed forms: the plane (Euclidean), the unrolled prism, the sphere
 //! (great circles, convergence order), and invariants on random bad meshes.
 
-use geodex::numerics::mesh::exact::{exact_distance, exact_distance_with_stats};
+use geodex::numerics::mesh::exact::{exact_distance, exact_distance_with_stats, exact_paths};
 use geodex::numerics::mesh::{norm, sub, MeshSolveError, SurfacePoint, Topology, TriMesh};
 use geodex::numerics::Control;
 use proptest::prelude::*;
@@ -574,4 +574,257 @@ fn bumpy_icosphere_matches_the_exhaustive_filter() {
     for (v, (got, (_, label))) in d.labels.iter().zip(&rows).enumerate() {
         assert_eq!(got, label, "label of vertex {v}");
     }
+}
+
+/// Largest distance of the path's points from the segment `a`–`b`, relative
+/// to the segment's length, and the path's length.
+fn deviation_from_segment(points: &[[f64; 3]], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let ab = sub(b, a);
+    let l = norm(ab);
+    points
+        .iter()
+        .map(|p| {
+            let ap = sub(*p, a);
+            let t = ((ap[0] * ab[0] + ap[1] * ab[1] + ap[2] * ab[2]) / (l * l)).clamp(0.0, 1.0);
+            norm(sub(ap, [ab[0] * t, ab[1] * t, ab[2] * t])) / l
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Issue 24: with the exact method, a path is backtracked through the
+/// windows. On a flat square with obtuse triangles it is the straight
+/// segment between its ends (within 1e-9 of the length), its length equals
+/// the exact distance, and it crosses edges, not just vertices; a target
+/// inside a face gets the straight segment too.
+#[test]
+fn exact_paths_are_straight_on_the_plane() {
+    let m = irregular_square(17, 7);
+    let topo = Topology::new(&m);
+    let source = 0u32;
+    let targets: Vec<SurfacePoint> = [17 * 16 + 16, 17 * 9 + 3, 5, 17 * 16 + 2]
+        .into_iter()
+        .map(SurfacePoint::Vertex)
+        .chain([SurfacePoint::Face {
+            face: 301,
+            bary: [0.2, 0.5, 0.3],
+        }])
+        .collect();
+    let (d, paths) = exact_paths(
+        &m,
+        &topo,
+        &[SurfacePoint::Vertex(source)],
+        &targets,
+        &Control::new(),
+    )
+    .unwrap();
+    let ps = m.position(source);
+    for (t, path) in targets.iter().zip(&paths) {
+        let path = path.as_ref().unwrap();
+        let pts: Vec<[f64; 3]> = path.points.iter().map(|p| p.position).collect();
+        let pt = t.position(&m);
+        let want = norm(sub(pt, ps));
+        assert!(
+            norm(sub(pts[0], pt)) < 1e-12,
+            "{t:?}: the path starts at the target"
+        );
+        assert!(
+            norm(sub(*pts.last().unwrap(), ps)) < 1e-12,
+            "{t:?}: and ends at the source"
+        );
+        let dev = deviation_from_segment(&pts, pt, ps);
+        assert!(dev <= 1e-9, "{t:?}: deviation {dev:e}");
+        assert!(
+            (path.length - want).abs() <= 1e-9 * want,
+            "{t:?}: {} vs {want}",
+            path.length
+        );
+        if let SurfacePoint::Vertex(v) = *t {
+            assert!((path.length - d.distance[v as usize]).abs() <= 1e-9 * want);
+        }
+        assert_eq!(path.source, Some(0));
+    }
+    // The long diagonal crosses many edges.
+    let diag = paths[0].as_ref().unwrap();
+    let crossings = diag
+        .points
+        .iter()
+        .filter(|p| {
+            matches!(
+                p.location,
+                geodex::numerics::mesh::paths::PathLocation::Edge(..)
+            )
+        })
+        .count();
+    assert!(crossings >= 16, "{crossings} edge crossings");
+}
+
+/// On the prism the exact path, unrolled, is the straight segment of the
+/// unrolled plane, and wraps the shorter way round; around the re-entrant
+/// corner of an L it bends at the corner.
+#[test]
+fn exact_paths_unroll_on_the_prism_and_bend_at_corners() {
+    let (n, rings, r, height) = (24, 9, 1.0, 2.0);
+    let m = prism(n, rings, r, height);
+    let topo = Topology::new(&m);
+    let side = 2.0 * r * (std::f64::consts::PI / n as f64).sin();
+    let (i0, j0) = (3usize, 1usize);
+    let s = (j0 * n + i0) as u32;
+    // Unrolled coordinates of a point on the prism: the arc length along
+    // the polygon from vertex i0's angle (the short way round), and z.
+    let unroll = |p: [f64; 3]| {
+        let th = p[1].atan2(p[0]);
+        let th0 = 2.0 * std::f64::consts::PI * i0 as f64 / n as f64;
+        let mut dt = th - th0;
+        while dt > std::f64::consts::PI {
+            dt -= 2.0 * std::f64::consts::PI;
+        }
+        while dt < -std::f64::consts::PI {
+            dt += 2.0 * std::f64::consts::PI;
+        }
+        // Position along the polygon: whole sides plus the part of a side.
+        let step = 2.0 * std::f64::consts::PI / n as f64;
+        let k = (dt / step).floor();
+        let frac_point = {
+            let a = th0 + k * step;
+            let (ax, ay) = (r * a.cos(), r * a.sin());
+            ((p[0] - ax).hypot(p[1] - ay)) / side
+        };
+        [(k + frac_point) * side, p[2]]
+    };
+    for (it, jt) in [(9usize, 7usize), (20, 8), (3, 8)] {
+        let t = (jt * n + it) as u32;
+        let (dist, paths) = exact_paths(
+            &m,
+            &topo,
+            &[SurfacePoint::Vertex(s)],
+            &[SurfacePoint::Vertex(t)],
+            &Control::new(),
+        )
+        .unwrap();
+        let path = paths[0].as_ref().unwrap();
+        assert!((path.length - dist.distance[t as usize]).abs() < 1e-9 * path.length);
+        let u: Vec<[f64; 2]> = path.points.iter().map(|p| unroll(p.position)).collect();
+        let (a, b) = (u[0], *u.last().unwrap());
+        let chord = (b[0] - a[0]).hypot(b[1] - a[1]);
+        assert!(
+            (chord - path.length).abs() < 1e-9 * chord,
+            "target {t}: unrolled {chord} vs {}",
+            path.length
+        );
+        for q in &u {
+            let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+            let dev = ((q[0] - a[0]) * ey - (q[1] - a[1]) * ex).abs() / chord;
+            assert!(dev < 1e-9 * chord.max(1.0), "target {t}: {dev:e}");
+        }
+    }
+
+    // The L: from (0, 2) to (2, 0) the path goes through the corner (1, 1).
+    let nn = 9;
+    let h = 2.0 / (nn - 1) as f64;
+    let mut p = Vec::new();
+    let mut idx = vec![u32::MAX; nn * nn];
+    for i in 0..nn {
+        for j in 0..nn {
+            let (x, y) = (i as f64 * h, j as f64 * h);
+            if x > 1.0 + 1e-9 && y > 1.0 + 1e-9 {
+                continue;
+            }
+            idx[i * nn + j] = p.len() as u32;
+            p.push([x, y, 0.0]);
+        }
+    }
+    let mut f = Vec::new();
+    for i in 0..nn - 1 {
+        for j in 0..nn - 1 {
+            let q = [
+                idx[i * nn + j],
+                idx[(i + 1) * nn + j],
+                idx[(i + 1) * nn + j + 1],
+                idx[i * nn + j + 1],
+            ];
+            if q.contains(&u32::MAX) {
+                continue;
+            }
+            f.push([q[0], q[1], q[2]]);
+            f.push([q[0], q[2], q[3]]);
+        }
+    }
+    let l = TriMesh::new(p, f).unwrap();
+    let topo = Topology::new(&l);
+    // From (0, 2) to (2, 0.5): the chord passes x = 1 at y = 1.25, outside.
+    let (s, t) = (idx[nn - 1], idx[(nn - 1) * nn + 2]);
+    let (_, paths) = exact_paths(
+        &l,
+        &topo,
+        &[SurfacePoint::Vertex(s)],
+        &[SurfacePoint::Vertex(t)],
+        &Control::new(),
+    )
+    .unwrap();
+    let path = paths[0].as_ref().unwrap();
+    let want = 2f64.sqrt() + 1.25f64.sqrt();
+    assert!(
+        (path.length - want).abs() < 1e-9,
+        "{} vs {want}",
+        path.length
+    );
+    assert!(path
+        .points
+        .iter()
+        .any(|q| norm(sub(q.position, [1.0, 1.0, 0.0])) < 1e-12));
+}
+
+/// On a sphere the exact path's length equals the exact distance at every
+/// target, vertex or face point, and every piece stays on the surface.
+#[test]
+fn exact_path_lengths_equal_the_distance_on_a_sphere() {
+    let m = icosphere(3);
+    let topo = Topology::new(&m);
+    let sources = [
+        SurfacePoint::Vertex(0),
+        SurfacePoint::Face {
+            face: 200,
+            bary: [0.3, 0.3, 0.4],
+        },
+    ];
+    let mut targets: Vec<SurfacePoint> = (1..m.num_vertices() as u32)
+        .step_by(7)
+        .map(SurfacePoint::Vertex)
+        .collect();
+    targets.push(SurfacePoint::Face {
+        face: 77,
+        bary: [0.1, 0.6, 0.3],
+    });
+    let (d, paths) = exact_paths(&m, &topo, &sources, &targets, &Control::new()).unwrap();
+    for (t, path) in targets.iter().zip(&paths) {
+        let path = path.as_ref().unwrap();
+        let want = match *t {
+            SurfacePoint::Vertex(v) => d.distance[v as usize],
+            _ => path.length,
+        };
+        assert!(
+            (path.length - want).abs() < 1e-9 * want.max(1e-3),
+            "{t:?}: {} vs {want}",
+            path.length
+        );
+        if let SurfacePoint::Vertex(v) = *t {
+            assert_eq!(path.source, Some(d.labels[v as usize] as usize));
+        }
+    }
+    // The face target: its path is at most the best corner route and at
+    // least the chord to the nearest source.
+    let ft = *targets.last().unwrap();
+    let path = paths.last().unwrap().as_ref().unwrap();
+    let f = m.faces()[77];
+    let q = ft.position(&m);
+    let corner_best = f
+        .iter()
+        .map(|&v| d.distance[v as usize] + norm(sub(m.position(v), q)))
+        .fold(f64::INFINITY, f64::min);
+    assert!(path.length <= corner_best + 1e-12);
+    let chord = sources
+        .iter()
+        .map(|s| norm(sub(s.position(&m), q)))
+        .fold(f64::INFINITY, f64::min);
+    assert!(path.length >= chord - 1e-12);
 }

@@ -6,11 +6,14 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::{
     check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
+use crate::numerics::mesh::exact::exact_paths;
 use crate::numerics::mesh::paths::{trace_path, PathLocation};
+use crate::numerics::mesh::{MeshMethod, SurfacePoint};
 use crate::numerics::Control;
 
 /// Request of `mesh.paths` (`POST /v1/mesh/paths`).
@@ -30,7 +33,10 @@ pub struct MeshPathsRequest {
     /// The points to trace from; each path ends at its nearest source.
     #[schema(min_items = 1)]
     pub targets: Vec<MeshPointSpec>,
-    /// The method of the distance field that is descended. Default: `fast_marching`.
+    /// The method. `exact` backtracks the exact method's windows: each path
+    /// is a shortest path (straight in every face and across every edge
+    /// once unfolded) whose length equals the exact distance; the other
+    /// methods descend their distance field. Default: `fast_marching`.
     #[serde(default)]
     pub method: MeshMethodSpec,
     /// Heat method options.
@@ -111,31 +117,48 @@ impl Operation for MeshPathsRequest {
         check_points(&input.mesh, &sources, "sources")?;
         check_points(&input.mesh, &targets, "targets")?;
         let started = Instant::now();
-        let (d, heat) = run_distance(
-            inputs,
-            &self.mesh,
-            &input,
-            &sources,
-            self.method.into(),
-            f64::INFINITY,
-            None,
-            &self.heat,
-            control,
-        )?;
+        let method: MeshMethod = self.method.into();
+        // The exact method backtracks its windows: exact paths. The others
+        // descend their distance field.
+        let (d, heat, exact) = if method == MeshMethod::Exact {
+            let (d, paths) = exact_paths(&input.mesh, &input.topology, &sources, &targets, control)
+                .map_err(mesh_solve_error)?;
+            (d, None, Some(paths))
+        } else {
+            let (d, heat) = run_distance(
+                inputs,
+                &self.mesh,
+                &input,
+                &sources,
+                method,
+                f64::INFINITY,
+                None,
+                &self.heat,
+                control,
+            )?;
+            (d, heat, None)
+        };
+        let mut exact = exact.map(|p| p.into_iter());
         let mut paths = Vec::with_capacity(targets.len());
         for (i, t) in targets.iter().enumerate() {
             if control.is_cancelled() {
                 return Err(OpError::Cancelled);
             }
+            let path = match exact.as_mut().and_then(|p| p.next()) {
+                Some(p) => p,
+                None => trace_path(&input.mesh, &input.topology, &d.distance, &sources, *t),
+            }
+            .map_err(|e| OpError::invalid(format!("targets[{i}]"), e.to_string()))?;
             let distance = match *t {
-                crate::numerics::mesh::SurfacePoint::Vertex(v) => d.distance[v as usize],
-                crate::numerics::mesh::SurfacePoint::Face { face, bary } => {
+                SurfacePoint::Vertex(v) => d.distance[v as usize],
+                // The exact distance of a point inside a face is the length
+                // of its exact path; the others interpolate.
+                SurfacePoint::Face { .. } if method == MeshMethod::Exact => path.length,
+                SurfacePoint::Face { face, bary } => {
                     let f = input.mesh.faces()[face as usize];
                     (0..3).map(|k| bary[k] * d.distance[f[k] as usize]).sum()
                 }
             };
-            let path = trace_path(&input.mesh, &input.topology, &d.distance, &sources, *t)
-                .map_err(|e| OpError::invalid(format!("targets[{i}]"), e.to_string()))?;
             paths.push(PathOut {
                 target: i,
                 source: path.source,

@@ -186,6 +186,41 @@ async fn mesh_upload_distance_download() {
     assert_eq!(path["source"], 0);
     assert!(path["points"].as_array().unwrap().len() >= 2);
     assert!(path["result"].is_null());
+    // With the exact method the path is backtracked: its length is the
+    // exact distance, and every piece is at most a chord of the sphere.
+    let p: serde_json::Value = post(
+        &app,
+        "/v1/mesh/paths",
+        json!({"mesh": id, "sources": [{"vertex": 0}], "targets": [{"vertex": 300}, {"face": 7, "bary": [0.2, 0.3, 0.5]}], "method": "exact"}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    for path in p["paths"].as_array().unwrap() {
+        let (length, distance) = (
+            path["length"].as_f64().unwrap(),
+            path["distance"].as_f64().unwrap(),
+        );
+        assert!((length - distance).abs() < 1e-9 * distance, "{path}");
+        assert!(path["points"].as_array().unwrap().len() >= 3, "{path}");
+    }
+    // The heat method reports its Laplacian; the cotangent one is cached
+    // apart from the robust one (built by the distance call above).
+    for (laplacian, cached) in [("robust", true), ("cotangent", false), ("cotangent", true)] {
+        let h: serde_json::Value = post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"vertex": 0}], "method": "heat", "heat": {"laplacian": laplacian}}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+        assert_eq!(h["heat"]["laplacian"], laplacian, "{h}");
+        assert_eq!(h["heat"]["cached"], cached, "{h}");
+        assert_eq!(h["heat"]["tufted"], false, "{h}");
+    }
     let s: serde_json::Value = post(&app, "/v1/mesh/sample", json!({"mesh": id, "count": 10}))
         .await
         .json()

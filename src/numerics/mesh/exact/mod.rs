@@ -94,8 +94,11 @@
 //! propagated: a new window is only cut, against two vertex distances (a
 //! few flops) and, one-sidedly, against the latest windows of its edge,
 //! and every cut is justified by a real shorter path, so a bad cut can cost
-//! time but never a wrong distance. The parent tree is not stored (no
-//! path backtracking yet). VTP's test of a window against the third vertex
+//! time but never a wrong distance. Paths ([`exact_paths`]) are not read
+//! off a window tree: each vertex keeps only how it got its final distance
+//! (the window's crossing and source image, or the vertex before it), and
+//! the path is traced back along that straight unfolded ray
+//! (`backtrack`). VTP's test of a window against the third vertex
 //! of the face it enters (and of the face it leaves: `U(v) + |vx|` through
 //! the straight segment in that face) was tried and removed no windows on
 //! icospheres beyond the tests above (97.7 per vertex at 41k either way),
@@ -124,7 +127,10 @@
 //! edge lengths happen only on non-degenerate faces.
 
 use std::cmp::Ordering;
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, HashMap};
+
+mod backtrack;
+pub use backtrack::exact_paths;
 
 use super::{norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh, NONE};
 use crate::numerics::Control;
@@ -412,6 +418,45 @@ struct Frame {
     lca: f64,
 }
 
+/// How a vertex (or a target point) got its distance, for backtracking a
+/// path (kept only by [`exact_paths`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Parent {
+    /// Not reached.
+    None,
+    /// A source vertex.
+    Root,
+    /// A straight segment (along an edge, or inside one face) to this
+    /// vertex, then that vertex's own path.
+    Vertex(u32),
+    /// A straight segment inside the source's face to the point of source
+    /// `label`.
+    SourcePoint(u32),
+    /// A straight segment to the point at `x` on half-edge `h`, then the
+    /// unfolded straight ray from there towards the source image `(sx, sy)`
+    /// (in the frame of `h`, `sy <= 0`) of a (pseudo-)source at distance
+    /// `sigma`.
+    Ray {
+        h: u32,
+        x: f64,
+        sx: f64,
+        sy: f64,
+        sigma: f64,
+    },
+}
+
+/// A point inside a face whose distance and path are wanted: updated like
+/// a vertex by every window crossing an edge of its face, but never
+/// propagated further.
+#[derive(Debug, Clone, Copy)]
+struct Target {
+    face: u32,
+    bary: [f64; 3],
+    dist: f64,
+    label: u32,
+    parent: Parent,
+}
+
 struct Propagation<'a> {
     mesh: &'a TriMesh,
     topo: &'a Topology,
@@ -437,6 +482,11 @@ struct Propagation<'a> {
     reached: usize,
     reachable: usize,
     stats: ExactStats,
+    /// Per vertex, how it got its distance (empty unless paths are wanted).
+    parents: Vec<Parent>,
+    targets: Vec<Target>,
+    /// Face → indices into `targets`.
+    face_targets: HashMap<u32, Vec<u32>>,
 }
 
 impl<'a> Propagation<'a> {
@@ -502,6 +552,9 @@ impl<'a> Propagation<'a> {
             reached: 0,
             reachable: 0,
             stats: ExactStats::default(),
+            parents: Vec::new(),
+            targets: Vec::new(),
+            face_targets: HashMap::new(),
         }
     }
 
@@ -581,8 +634,35 @@ impl<'a> Propagation<'a> {
 
     fn seed_vertex(&mut self, v: u32, label: u32) {
         self.pseudo[v as usize] = true;
-        if self.dist[v as usize] > 0.0 {
-            self.update(v, 0.0, label);
+        if self.dist[v as usize] > 0.0 && self.update(v, 0.0, label) {
+            self.set_parent(v, Parent::Root);
+        }
+    }
+
+    /// Records how `v` got its distance (when paths are wanted).
+    #[inline]
+    fn set_parent(&mut self, v: u32, p: Parent) {
+        if let Some(slot) = self.parents.get_mut(v as usize) {
+            *slot = p;
+        }
+    }
+
+    /// Lowers the distance of the targets in face `f` through `point`
+    /// (a function of the target's barycentric coordinates returning the
+    /// path length and its parent).
+    #[inline]
+    fn update_targets(&mut self, f: usize, label: u32, point: impl Fn([f64; 3]) -> (f64, Parent)) {
+        let Some(list) = self.face_targets.get(&(f as u32)) else {
+            return;
+        };
+        for &t in list {
+            let t = &mut self.targets[t as usize];
+            let (d, parent) = point(t.bary);
+            if d < t.dist {
+                t.dist = d;
+                t.label = label;
+                t.parent = parent;
+            }
         }
     }
 
@@ -603,7 +683,16 @@ impl<'a> Propagation<'a> {
         };
         for &v in &face {
             let d = norm(sub(mesh.position(v), pos));
-            self.update(v, d, label);
+            if self.update(v, d, label) {
+                self.set_parent(v, Parent::SourcePoint(label));
+            }
+        }
+        if !self.face_targets.is_empty() {
+            let corners = face.map(|v| mesh.position(v));
+            self.update_targets(f, label, |t| {
+                let q = barycentric_point(&corners, t);
+                (norm(sub(q, pos)), Parent::SourcePoint(label))
+            });
         }
         if self.degenerate[f] {
             return;
@@ -655,8 +744,17 @@ impl<'a> Propagation<'a> {
             for &u in &face {
                 if u != v {
                     let d = sigma + norm(sub(self.mesh.position(u), pv));
-                    self.update(u, d, label);
+                    if self.update(u, d, label) {
+                        self.set_parent(u, Parent::Vertex(v));
+                    }
                 }
+            }
+            if !self.face_targets.is_empty() {
+                let corners = face.map(|x| self.mesh.position(x));
+                self.update_targets(f, label, |t| {
+                    let q = barycentric_point(&corners, t);
+                    (sigma + norm(sub(q, pv)), Parent::Vertex(v))
+                });
             }
             if self.degenerate[f] {
                 continue;
@@ -817,10 +915,59 @@ impl<'a> Propagation<'a> {
         // Vertices a and b through the ends of the interval.
         let d0 = sigma + len2(w.b0 - sx, sy);
         let d1 = sigma + len2(w.b1 - sx, sy);
-        self.update(a, d0 + w.b0, label);
-        self.update(b, d1 + (fr.l - w.b1), label);
+        let h = w.h;
+        if self.update(a, d0 + w.b0, label) {
+            let x = w.b0;
+            self.set_parent(
+                a,
+                Parent::Ray {
+                    h,
+                    x,
+                    sx,
+                    sy,
+                    sigma,
+                },
+            );
+        }
+        if self.update(b, d1 + (fr.l - w.b1), label) {
+            let x = w.b1;
+            self.set_parent(
+                b,
+                Parent::Ray {
+                    h,
+                    x,
+                    sx,
+                    sy,
+                    sigma,
+                },
+            );
+        }
         if !self.trim(&mut w, fr.l, true) {
             return;
+        }
+        if !self.face_targets.is_empty() {
+            let (b0, b1) = (w.b0, w.b1);
+            self.update_targets(f, label, |t| {
+                // The target in this edge's frame (barycentric coordinates
+                // are affine), and the ray of the window nearest to it.
+                let (px, py) = (
+                    t[(k + 1) % 3] * fr.l + t[(k + 2) % 3] * fr.cx,
+                    t[(k + 2) % 3] * fr.cy,
+                );
+                let xt = sx + (px - sx) * (-sy) / (py - sy);
+                let x = if xt.is_finite() { xt.clamp(b0, b1) } else { b0 };
+                let d = sigma + len2(x - sx, sy) + len2(px - x, py);
+                (
+                    d,
+                    Parent::Ray {
+                        h,
+                        x,
+                        sx,
+                        sy,
+                        sigma,
+                    },
+                )
+            });
         }
         self.stats.windows_propagated += 1;
         let slots = &mut self.recent[w.h as usize];
@@ -832,6 +979,18 @@ impl<'a> Propagation<'a> {
         let xp = xc.clamp(b0, b1);
         let dc = sigma + len2(xp - sx, sy) + len2(fr.cx - xp, fr.cy);
         let improved = self.update(c, dc, label);
+        if improved {
+            self.set_parent(
+                c,
+                Parent::Ray {
+                    h,
+                    x: xp,
+                    sx,
+                    sy,
+                    sigma,
+                },
+            );
+        }
         let mut left = (b0, xc.min(b1));
         let mut right = (xc.max(b0), b1);
         if improved && xp == xc {
@@ -945,11 +1104,16 @@ impl<'a> Propagation<'a> {
         Ok(())
     }
 
-    fn finish(mut self) -> (MeshDistance, ExactStats) {
-        if self.violates_edges() {
+    /// Repairs the vertex distances if the final edge check fails.
+    fn settle(&mut self) {
+        if !self.stats.repaired && self.violates_edges() {
             self.stats.repaired = true;
             self.repair();
         }
+    }
+
+    fn finish(mut self) -> (MeshDistance, ExactStats) {
+        self.settle();
         let max = self.max_distance;
         let mut labels = Vec::with_capacity(self.dist.len());
         for (d, &l) in self.dist.iter_mut().zip(&self.label) {
@@ -1010,6 +1174,9 @@ impl<'a> Propagation<'a> {
                     if d < self.dist[u as usize] {
                         self.dist[u as usize] = d;
                         self.label[u as usize] = label;
+                        if let Some(p) = self.parents.get_mut(u as usize) {
+                            *p = Parent::Vertex(e.v);
+                        }
                         heap.push(VertexEvent { key: d, v: u });
                     }
                 }
@@ -1106,6 +1273,12 @@ fn trim_by_window(w: &mut Window, o: &Field, l: f64) -> bool {
         w.b1 = w.b1.min(start);
     }
     w.b1 - w.b0 > MIN_WIDTH * l
+}
+
+/// The point of barycentric coordinates `b` in the triangle `p`.
+#[inline]
+fn barycentric_point(p: &[[f64; 3]; 3], b: [f64; 3]) -> [f64; 3] {
+    [0, 1, 2].map(|c| b[0] * p[0][c] + b[1] * p[1][c] + b[2] * p[2][c])
 }
 
 /// `sqrt(x² + y²)` (no overflow guard: coordinates are mesh-sized).
