@@ -874,6 +874,9 @@ mod tests {
         max_rel: f64,
         checked: usize,
         skipped: usize,
+        /// Cells by the branch of their update in the unperturbed solve:
+        /// second order, cap, first order, one-axis step.
+        branches: [usize; 4],
     }
 
     /// Compares the adjoint gradient with centred differences of the solver
@@ -896,10 +899,22 @@ mod tests {
         let gmax = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(gmax > 0.1, "a gradient of {gmax}");
         let s0 = structure(&base, &opts, &out);
+        let mut branches = [0usize; 4];
+        for (_, row) in &s0 {
+            if let Some((b, _, _)) = row {
+                branches[match b {
+                    Branch::Second => 0,
+                    Branch::Cap => 1,
+                    Branch::First => 2,
+                    Branch::Step => 3,
+                }] += 1;
+            }
+        }
         let mut report = FdReport {
             max_rel: 0.0,
             checked: 0,
             skipped: 0,
+            branches,
         };
         for c in 0..w.len() {
             let eps = 1e-6 * w[c];
@@ -1016,9 +1031,11 @@ mod tests {
             &weights,
         );
         eprintln!(
-            "order 2, 2D: max relative difference {:.3e} over {} cells ({} skipped)",
-            r.max_rel, r.checked, r.skipped
+            "order 2, 2D: max relative difference {:.3e} over {} cells ({} skipped), branches {:?}",
+            r.max_rel, r.checked, r.skipped, r.branches
         );
+        // Most cells use the second-order stencil.
+        assert!(r.branches[0] * 2 > r.checked, "{:?}", r.branches);
         assert!(r.max_rel <= 1e-4, "max relative difference {}", r.max_rel);
         assert!(r.skipped * 10 <= r.checked, "{} skipped", r.skipped);
 
@@ -1035,11 +1052,87 @@ mod tests {
             &weights,
         );
         eprintln!(
-            "order 2, 3D: max relative difference {:.3e} over {} cells ({} skipped)",
-            r.max_rel, r.checked, r.skipped
+            "order 2, 3D: max relative difference {:.3e} over {} cells ({} skipped), branches {:?}",
+            r.max_rel, r.checked, r.skipped, r.branches
         );
+        assert!(r.branches[0] * 2 > r.checked, "{:?}", r.branches);
         assert!(r.max_rel <= 1e-4, "max relative difference {}", r.max_rel);
         assert!(r.skipped * 10 <= r.checked, "{} skipped", r.skipped);
+    }
+
+    /// A rough cost in `[0.3, 3]` (a hash of the cell), where the
+    /// second-order values overshoot and the step cap binds.
+    fn rough_cost(shape: &[usize]) -> Vec<f64> {
+        let n: usize = shape.iter().product();
+        (0..n)
+            .map(|i| {
+                let mut z = (i as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                z ^= z >> 29;
+                z = z.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                z ^= z >> 32;
+                0.3 + 2.7 * (z % 10_000) as f64 / 10_000.0
+            })
+            .collect()
+    }
+
+    #[test]
+    fn order_two_matches_finite_differences_on_a_rough_cost() {
+        let shape = [20, 20];
+        let weights = [
+            (Probe::Cell(vec![19, 19]), 1.0),
+            (Probe::Cell(vec![0, 19]), 0.5),
+            (Probe::Cell(vec![19, 2]), 0.5),
+        ];
+        let r = finite_differences(
+            &second_order(),
+            &Grid::unit(&shape).unwrap(),
+            &rough_cost(&shape),
+            &[Source::Point(vec![4.4, 6.1])],
+            &weights,
+        );
+        eprintln!(
+            "order 2, rough cost: max relative difference {:.3e} over {} cells ({} skipped), branches {:?}",
+            r.max_rel, r.checked, r.skipped, r.branches
+        );
+        assert!(r.max_rel <= 1e-4, "max relative difference {}", r.max_rel);
+        assert!(r.branches[1] > 0, "the cap never binds: {:?}", r.branches);
+        assert!(r.skipped * 4 <= r.checked, "{} skipped", r.skipped);
+    }
+
+    #[test]
+    fn matches_finite_differences_with_two_sources() {
+        // Two point sources and a cell source: the Voronoi boundaries are
+        // kinks, skipped when a perturbation moves them.
+        let shape = [24, 24];
+        let weights = [
+            (Probe::Cell(vec![23, 0]), 1.0),
+            (Probe::Cell(vec![12, 12]), 1.0),
+            (Probe::Cell(vec![0, 23]), 1.0),
+            (Probe::Cell(vec![23, 23]), 1.0),
+        ];
+        let sources = [
+            Source::Point(vec![3.3, 4.2]),
+            Source::Point(vec![18.6, 15.1]),
+            Source::Cells {
+                cells: vec![vec![2, 20], vec![3, 20]],
+                values: Some(vec![1.0, 1.5]),
+            },
+        ];
+        for opts in [first_order(), second_order()] {
+            let r = finite_differences(
+                &opts,
+                &Grid::unit(&shape).unwrap(),
+                &smooth_cost(&shape),
+                &sources,
+                &weights,
+            );
+            eprintln!(
+                "three sources, {:?}: max relative difference {:.3e} over {} cells ({} skipped)",
+                opts.order, r.max_rel, r.checked, r.skipped
+            );
+            assert!(r.max_rel <= 1e-4, "max relative difference {}", r.max_rel);
+            assert!(r.skipped * 10 <= r.checked, "{} skipped", r.skipped);
+        }
     }
 
     #[test]
