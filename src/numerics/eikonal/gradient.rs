@@ -317,6 +317,8 @@ struct Replay<'a> {
     problem: &'a EikonalProblem<'a>,
     st: Stencil,
     second: bool,
+    /// Several sources (labels may differ between neighbours).
+    multi: bool,
     u: Vec<f64>,
     labels: Vec<i32>,
     ranks: Option<Vec<i64>>,
@@ -377,6 +379,7 @@ impl<'a> Replay<'a> {
             problem,
             st: Stencil::new(grid),
             second: options.order == Order::Second,
+            multi: problem.sources.len() > 1,
             // C order, as the solvers' working arrays.
             u: output.distance.iter().copied().collect(),
             labels: output.labels.iter().copied().collect(),
@@ -408,23 +411,25 @@ impl<'a> Replay<'a> {
         // later than the last neighbour frozen before `x`; without them
         // (order 1, which freezes in non-decreasing `U`), the neighbours
         // of smaller `U` (a neighbour of equal `U` has a zero term).
-        let last = self.ranks.as_ref().map(|r| {
-            let mut t = -1i64;
-            for &k in st.axes() {
-                let s = st.strides[k];
-                for j in [
-                    (idx[k] > 0).then(|| x - s),
-                    (idx[k] + 1 < st.shape[k]).then(|| x + s),
-                ]
-                .into_iter()
-                .flatten()
-                {
-                    if r[j] >= 0 && r[j] < r[x] {
-                        t = t.max(r[j]);
-                    }
-                }
+        // The axis neighbours, lower side first (`usize::MAX`: none).
+        let axes = st.axes();
+        let mut nbs = [usize::MAX; MAX_READS];
+        for (slot, &k) in axes.iter().enumerate() {
+            let s = st.strides[k];
+            if idx[k] > 0 {
+                nbs[2 * slot] = x - s;
             }
-            t
+            if idx[k] + 1 < st.shape[k] {
+                nbs[2 * slot + 1] = x + s;
+            }
+        }
+        let nbs = &nbs[..2 * axes.len()];
+        let last = self.ranks.as_ref().map(|r| {
+            let rx = r[x];
+            nbs.iter()
+                .filter(|&&j| j != usize::MAX && r[j] >= 0 && r[j] < rx)
+                .map(|&j| r[j])
+                .fold(-1i64, i64::max)
         });
         let frozen = |j: usize| match (&self.ranks, last) {
             (Some(r), Some(t)) => r[j] >= 0 && r[j] <= t,
@@ -432,18 +437,11 @@ impl<'a> Replay<'a> {
         };
         // Several labels among the known neighbours: the update of the
         // cell's own label won (see the module documentation).
-        let mut first_label = None;
         let mut mixed = false;
-        for &k in st.axes() {
-            let s = st.strides[k];
-            for j in [
-                (idx[k] > 0).then(|| x - s),
-                (idx[k] + 1 < st.shape[k]).then(|| x + s),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                if frozen(j) {
+        if self.multi {
+            let mut first_label = None;
+            for &j in nbs {
+                if j != usize::MAX && frozen(j) {
                     match first_label {
                         None => first_label = Some(labels[j]),
                         Some(l) if l != labels[j] => mixed = true,
@@ -783,9 +781,18 @@ fn backward_order(u: &[f64], output: &EikonalOutput) -> Vec<usize> {
         order.reverse();
         return order;
     }
-    let mut order: Vec<usize> = (0..u.len()).filter(|&i| u[i].is_finite()).collect();
-    order.sort_unstable_by(|&a, &b| u[b].total_cmp(&u[a]).then(b.cmp(&a)));
-    order
+    // Sort (key, index) pairs, the key ordering as `f64::total_cmp`: the
+    // comparisons then read contiguous memory instead of `u` at random.
+    let mut keyed: Vec<(u64, u32)> = (0..u.len())
+        .filter(|&i| u[i].is_finite())
+        .map(|i| {
+            let b = u[i].to_bits();
+            let key = if b >> 63 == 1 { !b } else { b | 1 << 63 };
+            (key, i as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.iter().rev().map(|&(_, i)| i as usize).collect()
 }
 
 #[cfg(test)]
