@@ -104,6 +104,8 @@
 //! [`Source::Cells`]: super::Source::Cells
 //! [`Source::Point`]: super::Source::Point
 
+use std::borrow::Cow;
+
 use ndarray::{ArrayD, IxDyn};
 
 use super::sources::nearest_cell;
@@ -321,9 +323,9 @@ struct Replay<'a> {
     second: bool,
     /// Several sources (labels may differ between neighbours).
     multi: bool,
-    u: Vec<f64>,
-    labels: Vec<i32>,
-    ranks: Option<Vec<i64>>,
+    u: Cow<'a, [f64]>,
+    labels: Cow<'a, [i32]>,
+    ranks: Option<Cow<'a, [i64]>>,
     /// Per cell: the index in `seeds` of its seed, or `u32::MAX`.
     seed_of: Vec<u32>,
     /// Per seed: `Some((q, |x − p|_h))` for a point source's seed (`q` the
@@ -335,7 +337,7 @@ impl<'a> Replay<'a> {
     fn new(
         problem: &'a EikonalProblem<'a>,
         options: &EikonalOptions,
-        output: &EikonalOutput,
+        output: &'a EikonalOutput,
         control: &Control<'_>,
     ) -> Result<Self, EikonalError> {
         check_options(options, output)?;
@@ -382,13 +384,9 @@ impl<'a> Replay<'a> {
             st: Stencil::new(grid),
             second: options.order == Order::Second,
             multi: problem.sources.len() > 1,
-            // C order, as the solvers' working arrays.
-            u: output.distance.iter().copied().collect(),
-            labels: output.labels.iter().copied().collect(),
-            ranks: output
-                .frozen_order
-                .as_ref()
-                .map(|o| o.iter().copied().collect()),
+            u: flat(&output.distance),
+            labels: flat(&output.labels),
+            ranks: output.frozen_order.as_ref().map(flat),
             seed_of,
             seeds,
         })
@@ -515,6 +513,15 @@ impl<'a> Replay<'a> {
                 ),
             }),
         }
+    }
+}
+
+/// The values of an array in C order (as the solvers' working arrays),
+/// borrowed when it is laid out so.
+fn flat<T: Clone>(a: &ArrayD<T>) -> Cow<'_, [T]> {
+    match a.as_slice() {
+        Some(s) => Cow::Borrowed(s),
+        None => Cow::Owned(a.iter().cloned().collect()),
     }
 }
 
@@ -799,11 +806,10 @@ fn backward_order(u: &[f64], output: &EikonalOutput) -> Vec<usize> {
 
 #[cfg(test)]
 mod tests {
-    use std::borrow::Cow;
     use std::sync::atomic::AtomicBool;
 
     use super::*;
-    use crate::numerics::eikonal::solve;
+    use crate::numerics::eikonal::{solve, StopRules};
     use crate::numerics::metric::{CostValues, Interpretation};
     use crate::numerics::{Grid, IsotropicCost};
 
@@ -1365,6 +1371,66 @@ mod tests {
                 ),
                 "{e:?}"
             );
+        }
+    }
+
+    #[test]
+    fn an_early_stop_keeps_the_gradient_of_the_cells_it_froze() {
+        // The cells frozen before a stop have the values, and the updates,
+        // of the full solve: so has the gradient of a probe among them.
+        let shape = [20, 20];
+        let problem = field_problem(
+            Grid::unit(&shape).unwrap(),
+            smooth_cost(&shape),
+            vec![Source::Point(vec![3.5, 4.0])],
+        );
+        let probe = Probe::Cell(vec![9, 8]);
+        for opts in [first_order(), second_order()] {
+            let full = solve(&problem, &opts, &Control::new()).unwrap();
+            let g =
+                distance_gradient(&problem, &opts, &full, probe.clone(), &Control::new()).unwrap();
+            let stops = [
+                StopRules {
+                    max_distance: Some(full.distance[[9, 8]] + 0.5),
+                    ..StopRules::default()
+                },
+                StopRules {
+                    targets: vec![vec![9.0, 8.0]],
+                    ..StopRules::default()
+                },
+            ];
+            for stop in stops {
+                let early_opts = opts.clone().with_stop(stop);
+                let early = solve(&problem, &early_opts, &Control::new()).unwrap();
+                assert!(early.frozen < problem.grid.len());
+                let ge = distance_gradient(
+                    &problem,
+                    &early_opts,
+                    &early,
+                    probe.clone(),
+                    &Control::new(),
+                )
+                .unwrap();
+                assert!(g.iter().zip(ge.iter()).all(|(a, b)| (a - b).abs() <= 1e-13));
+                // A cell the stop left out has no distance to differentiate.
+                let out = distance_gradient(
+                    &problem,
+                    &early_opts,
+                    &early,
+                    Probe::Cell(vec![19, 19]),
+                    &Control::new(),
+                );
+                assert!(
+                    matches!(
+                        out,
+                        Err(EikonalError::Option {
+                            field: "weights",
+                            ..
+                        })
+                    ),
+                    "{out:?}"
+                );
+            }
         }
     }
 
