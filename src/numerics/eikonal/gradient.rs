@@ -173,12 +173,15 @@ pub fn cost_gradient(
 ) -> Result<ArrayD<f64>, EikonalError> {
     let march = Replay::new(problem, options, output, control)?;
     let n = problem.grid.len();
-    let mut lambda = vec![0.0f64; n];
-    seed_adjoint(problem, &march.u, weights, &mut lambda)?;
+    // `[λ_x, ∂J/∂W_x]` side by side: the sweep visits the cells in front
+    // order, scattered in memory, and one cache line then serves both.
+    let mut acc = vec![[0.0f64; 2]; n];
+    for (i, w) in probe_weights(problem, &march.u, weights)? {
+        acc[i][0] += w;
+    }
 
     let order = backward_order(&march.u, output);
     let grid = &problem.grid;
-    let mut grad = vec![0.0f64; n];
     for (done, &x) in order.iter().enumerate() {
         if done % CANCEL_EVERY == 0 && control.is_cancelled() {
             return Err(EikonalError::Cancelled);
@@ -186,7 +189,7 @@ pub fn cost_gradient(
         if done % PROGRESS_EVERY == 0 && done > 0 {
             control.report(done as f64 / order.len() as f64);
         }
-        let lam = lambda[x];
+        let lam = acc[x][0];
         if lam == 0.0 {
             continue;
         }
@@ -194,22 +197,23 @@ pub fn cost_gradient(
             // A point source's seed is `W(q) |x − p|_h`; a cell source's
             // value does not depend on `W`.
             if let Some((q, r)) = seed {
-                grad[q] += lam * r;
+                acc[q][1] += lam * r;
             }
             continue;
         }
         let Some(row) = march.row(x)? else {
             continue;
         };
-        grad[x] += lam * row.dw;
+        acc[x][1] += lam * row.dw;
         if let Some((j, d)) = row.dw_neighbour {
-            grad[j] += lam * d;
+            acc[j][1] += lam * d;
         }
         for &(j, d) in row.du() {
-            lambda[j] += lam * d;
+            acc[j][0] += lam * d;
         }
     }
     control.report(1.0);
+    let grad = acc.iter().map(|a| a[1]).collect();
     ArrayD::from_shape_vec(IxDyn(grid.shape()), grad).map_err(|e| EikonalError::Option {
         field: "output",
         reason: e.to_string(),
@@ -326,8 +330,12 @@ struct Replay<'a> {
     u: Cow<'a, [f64]>,
     labels: Cow<'a, [i32]>,
     ranks: Option<Cow<'a, [i64]>>,
-    /// Per cell: the index in `seeds` of its seed, or `u32::MAX`.
-    seed_of: Vec<u32>,
+    /// The seed cells, in increasing index.
+    seed_cells: Vec<usize>,
+    /// Per cell the index in `seeds` of its seed, or `u32::MAX`, when
+    /// there are many seeds (a mask); otherwise a binary search of
+    /// `seed_cells` (a point source's few seeds stay in the cache).
+    seed_of: Option<Vec<u32>>,
     /// Per seed: `Some((q, |x − p|_h))` for a point source's seed (`q` the
     /// cell whose cost it uses), `None` for a cell source's.
     seeds: Vec<Option<(usize, f64)>>,
@@ -361,10 +369,14 @@ impl<'a> Replay<'a> {
         }
         // The seeds, as the solve made them.
         let front = InitialFront::build(problem, options.source_radius, control)?;
-        let mut seed_of = vec![u32::MAX; n];
+        let mut seed_of = (front.cells.len() * 16 > n).then(|| vec![u32::MAX; n]);
         let mut seeds = Vec::with_capacity(front.cells.len());
+        let mut seed_cells = Vec::with_capacity(front.cells.len());
         for (s, c) in front.cells.iter().enumerate() {
-            seed_of[c.index] = s as u32;
+            if let Some(of) = seed_of.as_mut() {
+                of[c.index] = s as u32;
+            }
+            seed_cells.push(c.index);
             let point = usize::try_from(c.label)
                 .ok()
                 .and_then(|l| problem.sources.get(l))
@@ -387,6 +399,7 @@ impl<'a> Replay<'a> {
             u: flat(&output.distance),
             labels: flat(&output.labels),
             ranks: output.frozen_order.as_ref().map(flat),
+            seed_cells,
             seed_of,
             seeds,
         })
@@ -394,8 +407,11 @@ impl<'a> Replay<'a> {
 
     /// `Some(seed)` if cell `x` is a seed (see [`Replay::seeds`]).
     fn seed(&self, x: usize) -> Option<Option<(usize, f64)>> {
-        let s = self.seed_of[x];
-        (s != u32::MAX).then(|| self.seeds.get(s as usize).copied().flatten())
+        let s = match &self.seed_of {
+            Some(of) => Some(of[x] as usize).filter(|&s| s != u32::MAX as usize),
+            None => self.seed_cells.binary_search(&x).ok(),
+        }?;
+        Some(self.seeds.get(s).copied().flatten())
     }
 
     /// The derivatives of the update of reached non-seed cell `x`, rebuilt
@@ -450,7 +466,8 @@ impl<'a> Replay<'a> {
                 }
             }
         }
-        let lx = labels[x];
+        // Read only when needed: one array less in the cache otherwise.
+        let lx = if mixed { labels[x] } else { 0 };
         let known = |j: usize| frozen(j) && (!mixed || labels[j] == lx);
 
         let mut ax = [Axis {
@@ -703,13 +720,13 @@ fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, usize)> {
     None
 }
 
-/// Adds the weights of the probes to the adjoint state.
-fn seed_adjoint(
+/// The weights of the probes on cells: `(cell, w_m × corner weight)`.
+fn probe_weights(
     problem: &EikonalProblem<'_>,
     u: &[f64],
     weights: &[(Probe, f64)],
-    lambda: &mut [f64],
-) -> Result<(), EikonalError> {
+) -> Result<Vec<(usize, f64)>, EikonalError> {
+    let mut out = Vec::with_capacity(weights.len());
     let grid = &problem.grid;
     let shape = grid.shape3();
     for (index, (probe, weight)) in weights.iter().enumerate() {
@@ -768,11 +785,9 @@ fn seed_adjoint(
                 )));
             }
         }
-        for (i, wc) in corners {
-            lambda[i] += weight * wc;
-        }
+        out.extend(corners.into_iter().map(|(i, wc)| (i, weight * wc)));
     }
-    Ok(())
+    Ok(out)
 }
 
 /// The reached cells in decreasing `U` (decreasing freezing rank when the
@@ -854,9 +869,11 @@ mod tests {
     /// `J = Σ w_m U(y_m)` read from a solve, as the adjoint defines it.
     fn objective(problem: &EikonalProblem<'_>, u: &ArrayD<f64>, weights: &[(Probe, f64)]) -> f64 {
         let flat: Vec<f64> = u.iter().copied().collect();
-        let mut lambda = vec![0.0; flat.len()];
-        seed_adjoint(problem, &flat, weights, &mut lambda).unwrap();
-        lambda.iter().zip(&flat).map(|(l, u)| l * u).sum()
+        probe_weights(problem, &flat, weights)
+            .unwrap()
+            .iter()
+            .map(|&(i, w)| w * flat[i])
+            .sum()
     }
 
     /// Per cell the label, the branch of its update and the cells it reads:
