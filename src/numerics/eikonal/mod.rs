@@ -24,16 +24,23 @@
 //! the distance to the zero level set of `phi`, located at sub-cell accuracy,
 //! signed on request (redistancing), and every non-zero cell of a mask as a
 //! source of value 0.
+//!
+//! Sensitivity to the cost ([`cost_gradient`], [`distance_gradient`]): the
+//! gradient of `J = Σ w_m U(y_m)` with respect to `W` at every cell, the
+//! discrete adjoint of first-order fast marching (one backward sweep in
+//! decreasing `U`, seed section 2.9).
 
 mod dijkstra;
 mod fast_marching;
 mod fast_sweeping;
+mod gradient;
 mod level_set;
 mod sources;
 // Crate-visible: farthest-point sampling (`numerics::sampling`) marches
 // its local fronts with the same update as the multi-source fast marching.
 pub(crate) mod update;
 
+pub use gradient::{cost_gradient, distance_gradient, Probe};
 pub use level_set::{
     level_set_distance, locate_interface, mask_source, Interface, InterfaceFit, LevelSetError,
     LevelSetOptions,
