@@ -375,11 +375,10 @@ fn max_distance_components_and_errors() {
     );
 }
 
-#[test]
-fn saddle_vertices_are_pseudo_sources() {
-    // An L-shaped flat domain: the re-entrant corner (1, 1) is a boundary
-    // vertex; paths around it bend there.
-    let n = 9;
+/// The L-shaped flat domain `[0, 2]² \ (1, 2]²` on an `n × n` grid of
+/// spacing `2 / (n − 1)`, and the vertex index of each grid node
+/// (`u32::MAX` outside).
+fn l_shape(n: usize) -> (TriMesh, Vec<u32>) {
     let h = 2.0 / (n - 1) as f64;
     let mut p = Vec::new();
     let mut idx = vec![u32::MAX; n * n];
@@ -409,7 +408,15 @@ fn saddle_vertices_are_pseudo_sources() {
             f.push([q[0], q[2], q[3]]);
         }
     }
-    let m = TriMesh::new(p, f).unwrap();
+    (TriMesh::new(p, f).unwrap(), idx)
+}
+
+#[test]
+fn saddle_vertices_are_pseudo_sources() {
+    // An L-shaped flat domain: the re-entrant corner (1, 1) is a boundary
+    // vertex; paths around it bend there.
+    let n = 9;
+    let (m, idx) = l_shape(n);
     let s = idx[n - 1]; // (0, 2)
     let d = solve(&m, &[SurfacePoint::Vertex(s)]);
     let corner = [1.0, 1.0];
@@ -718,38 +725,9 @@ fn exact_paths_unroll_on_the_prism_and_bend_at_corners() {
         }
     }
 
-    // The L: from (0, 2) to (2, 0) the path goes through the corner (1, 1).
+    // The L: from (0, 2) to (2, 0.5) the path bends at the corner (1, 1).
     let nn = 9;
-    let h = 2.0 / (nn - 1) as f64;
-    let mut p = Vec::new();
-    let mut idx = vec![u32::MAX; nn * nn];
-    for i in 0..nn {
-        for j in 0..nn {
-            let (x, y) = (i as f64 * h, j as f64 * h);
-            if x > 1.0 + 1e-9 && y > 1.0 + 1e-9 {
-                continue;
-            }
-            idx[i * nn + j] = p.len() as u32;
-            p.push([x, y, 0.0]);
-        }
-    }
-    let mut f = Vec::new();
-    for i in 0..nn - 1 {
-        for j in 0..nn - 1 {
-            let q = [
-                idx[i * nn + j],
-                idx[(i + 1) * nn + j],
-                idx[(i + 1) * nn + j + 1],
-                idx[i * nn + j + 1],
-            ];
-            if q.contains(&u32::MAX) {
-                continue;
-            }
-            f.push([q[0], q[1], q[2]]);
-            f.push([q[0], q[2], q[3]]);
-        }
-    }
-    let l = TriMesh::new(p, f).unwrap();
+    let (l, idx) = l_shape(nn);
     let topo = Topology::new(&l);
     // From (0, 2) to (2, 0.5): the chord passes x = 1 at y = 1.25, outside.
     let (s, t) = (idx[nn - 1], idx[(nn - 1) * nn + 2]);
