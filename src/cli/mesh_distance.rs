@@ -220,9 +220,15 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
     let doc = &output.document;
     let solve = doc["stats"]["solve_seconds"].as_f64().unwrap_or(f64::NAN);
     let factor = doc["heat"]["factor_seconds"].as_f64().unwrap_or(0.0);
+    let setup = &doc["heat"]["setup"];
+    let part = |k: &str| setup[k].as_f64().unwrap_or(0.0);
     eprintln!(
         "geodex: phases: read {read_seconds:.4} s (parse, weld, topology), setup {factor:.4} s \
-         (heat: Laplacian and factorisations), solve {:.4} s, write {write_seconds:.4} s",
+         (heat: guard {:.4} s, Laplacian {:.4} s, factorisations {:.4} s), solve {:.4} s, \
+         write {write_seconds:.4} s",
+        part("underflow_guard_seconds"),
+        part("laplacian_seconds"),
+        part("factorisation_seconds"),
         solve - factor
     );
     Ok(())

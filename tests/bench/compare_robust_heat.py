@@ -127,6 +127,9 @@ def geodex(binary, mesh, method, extra=()):
         m = re.search(r"read ([\d.]+) s .*setup ([\d.]+) s .*solve ([\d.]+) s, write ([\d.]+) s", r.stderr)
         if m:
             phases = dict(zip(["read", "setup", "solve", "write"], map(float, m.groups())))
+        m = re.search(r"guard ([\d.]+) s, Laplacian ([\d.]+) s, factorisations ([\d.]+) s", r.stderr)
+        if m:
+            phases.update(zip(["guard", "laplacian", "factorisations"], map(float, m.groups())))
         return np.load(out), wall, phases
 
 

@@ -220,6 +220,13 @@ async fn mesh_upload_distance_download() {
         assert_eq!(h["heat"]["laplacian"], laplacian, "{h}");
         assert_eq!(h["heat"]["cached"], cached, "{h}");
         assert_eq!(h["heat"]["tufted"], false, "{h}");
+        // The setup's phases are kept with the solver (also when cached).
+        let setup = &h["heat"]["setup"];
+        assert!(
+            setup["factorisation_seconds"].as_f64().unwrap() > 0.0,
+            "{h}"
+        );
+        assert!(setup["laplacian_seconds"].as_f64().unwrap() >= 0.0, "{h}");
     }
     let s: serde_json::Value = post(&app, "/v1/mesh/sample", json!({"mesh": id, "count": 10}))
         .await

@@ -88,6 +88,18 @@ impl Default for HeatOptions {
     }
 }
 
+/// Seconds spent in each phase of [`HeatSolver::new`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SetupPhases {
+    /// The Dijkstra eccentricities of the underflow guard.
+    pub underflow_guard: f64,
+    /// The triangulation (flips, mollification, tufted cover) and the
+    /// assembly of `M` and `L`.
+    pub laplacian: f64,
+    /// The symbolic and the two numeric Cholesky factorisations.
+    pub factorisation: f64,
+}
+
 /// One face of the triangulation the solver works on, laid out in its
 /// plane ([`intrinsic::layout`]).
 #[derive(Debug, Clone, Copy)]
@@ -124,6 +136,7 @@ pub struct HeatSolver {
     tufted: bool,
     flips: usize,
     mollified: f64,
+    phases: SetupPhases,
     heat: Llt<usize, f64>,
     poisson: Llt<usize, f64>,
     component: Vec<u32>,
@@ -154,6 +167,7 @@ impl HeatSolver {
         if !(h.is_finite() && h > 0.0) {
             return Err(MeshSolveError::Numerical("mean edge length is zero".into()));
         }
+        let started = std::time::Instant::now();
         let mut t = options.m * h * h;
         if options.underflow_guard {
             // One seed per component: eccentricities of the component roots.
@@ -175,6 +189,7 @@ impl HeatSolver {
             let floor = (2.0 * ecc / 600.0).powi(2);
             t = t.max(floor);
         }
+        let guard_seconds = started.elapsed().as_secs_f64();
         let tri = match options.laplacian {
             Laplacian::Robust => IntrinsicMesh::delaunay(mesh, topo, options.mollify, control)?,
             Laplacian::Cotangent => IntrinsicMesh::extrinsic(mesh),
@@ -254,6 +269,7 @@ impl HeatSolver {
         };
         let a = build(&|i| mass[i], t)?;
         let b = build(&|i| eps * mass[i] + pin[i], 1.0)?;
+        let laplacian_seconds = started.elapsed().as_secs_f64() - guard_seconds;
         let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
             .map_err(|e| numerical("symbolic factorisation", e))?;
         control.report(0.2);
@@ -266,7 +282,13 @@ impl HeatSolver {
         let poisson = Llt::try_new_with_symbolic(symbolic, b.as_ref(), Side::Lower)
             .map_err(|e| numerical("factorisation of L", e))?;
         control.report(1.0);
+        let total = started.elapsed().as_secs_f64();
         Ok(Self {
+            phases: SetupPhases {
+                underflow_guard: guard_seconds,
+                laplacian: laplacian_seconds,
+                factorisation: total - guard_seconds - laplacian_seconds,
+            },
             n,
             t,
             h,
@@ -310,6 +332,11 @@ impl HeatSolver {
     /// The mean edge length `h`.
     pub fn h(&self) -> f64 {
         self.h
+    }
+
+    /// Seconds spent in each phase of the setup.
+    pub fn phases(&self) -> SetupPhases {
+        self.phases
     }
 
     /// The Laplacian assembled.

@@ -16,7 +16,7 @@ pub mod solve;
 pub mod sources;
 
 pub use fast_marching::{fast_marching_distance, FastMarchingOptions};
-pub use heat::{HeatOptions, HeatSolver, Laplacian};
+pub use heat::{HeatOptions, HeatSolver, Laplacian, SetupPhases};
 pub use solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
 pub mod exact;
 

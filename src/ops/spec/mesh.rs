@@ -233,6 +233,20 @@ pub struct HeatInfo {
     pub cached: bool,
     /// Seconds spent factoring in this request (0 when cached).
     pub factor_seconds: f64,
+    /// Seconds of each setup phase when the solver was built (kept with
+    /// it: the same figures when cached).
+    pub setup: SetupPhasesOut,
+}
+
+/// The phases of the heat method's setup, in seconds.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct SetupPhasesOut {
+    /// Dijkstra eccentricities of the underflow guard.
+    pub underflow_guard_seconds: f64,
+    /// Triangulation (flips, mollification, tufted cover) and assembly.
+    pub laplacian_seconds: f64,
+    /// Symbolic and numeric Cholesky factorisations.
+    pub factorisation_seconds: f64,
 }
 
 impl HeatInfo {
@@ -250,6 +264,14 @@ impl HeatInfo {
             mollified: solver.mollified(),
             cached,
             factor_seconds,
+            setup: {
+                let p = solver.phases();
+                SetupPhasesOut {
+                    underflow_guard_seconds: p.underflow_guard,
+                    laplacian_seconds: p.laplacian,
+                    factorisation_seconds: p.factorisation,
+                }
+            },
         }
     }
 }
