@@ -45,6 +45,21 @@ pub struct GeodesicPath {
     pub length: f64,
 }
 
+impl GeodesicPath {
+    /// The path through `points`, its length the polyline's.
+    pub fn from_points(points: Vec<PathPoint>, source: Option<usize>) -> Self {
+        let length = points
+            .windows(2)
+            .map(|w| norm(sub(w[1].position, w[0].position)))
+            .sum();
+        Self {
+            points,
+            source,
+            length,
+        }
+    }
+}
+
 enum At {
     Vertex(u32),
     /// In face `f` at barycentric `b` (possibly on its boundary).
@@ -206,15 +221,7 @@ pub fn trace_path(
             }
         }
     }
-    let length = points
-        .windows(2)
-        .map(|w| norm(sub(w[1].position, w[0].position)))
-        .sum();
-    Ok(GeodesicPath {
-        points,
-        source,
-        length,
-    })
+    Ok(GeodesicPath::from_points(points, source))
 }
 
 fn push_source(mesh: &TriMesh, points: &mut Vec<PathPoint>, s: SurfacePoint) {

@@ -24,8 +24,8 @@
 use std::collections::HashMap;
 
 use super::{
-    barycentric_point, norm, sub, MeshDistance, MeshSolveError, Parent, Propagation, SurfacePoint,
-    Target, Topology, TriMesh, NONE,
+    barycentric_point, check_inputs, norm, sub, MeshDistance, MeshSolveError, Parent, Propagation,
+    SurfacePoint, Target, Topology, TriMesh, NONE,
 };
 use crate::numerics::mesh::paths::{GeodesicPath, PathLocation, PathPoint};
 use crate::numerics::Control;
@@ -48,7 +48,7 @@ use crate::numerics::Control;
 /// let t = Topology::new(&m);
 /// let (_, paths) = exact_paths(&m, &t, &[SurfacePoint::Vertex(1)], &[SurfacePoint::Vertex(3)],
 ///     &Control::new())?;
-/// let path = paths[0].as_ref().unwrap();
+/// let path = paths[0].clone()?;
 /// assert!((path.length - 2f64.sqrt()).abs() < 1e-12);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
@@ -60,25 +60,13 @@ pub fn exact_paths(
     targets: &[SurfacePoint],
     control: &Control<'_>,
 ) -> Result<(MeshDistance, Vec<Result<GeodesicPath, MeshSolveError>>), MeshSolveError> {
-    if sources.is_empty() {
-        return Err(MeshSolveError::NoSources);
-    }
-    for (index, s) in sources.iter().enumerate() {
-        s.validate(mesh)
-            .map_err(|reason| MeshSolveError::InvalidSource { index, reason })?;
-    }
+    check_inputs(mesh, topo, sources)?;
     for t in targets {
         t.validate(mesh)
             .map_err(|reason| MeshSolveError::InvalidOption {
                 option: "targets",
                 reason,
             })?;
-    }
-    if topo.opposite.len() != 3 * mesh.num_faces() || topo.component.len() != mesh.num_vertices() {
-        return Err(MeshSolveError::InvalidOption {
-            option: "topology",
-            reason: "was not built from this mesh".into(),
-        });
     }
     let mut p = Propagation::new(mesh, topo, f64::INFINITY);
     p.parents = vec![Parent::None; mesh.num_vertices()];
@@ -241,15 +229,7 @@ impl Propagation<'_> {
             }
         }
         dedup(&mut points);
-        let length = points
-            .windows(2)
-            .map(|w| norm(sub(w[1].position, w[0].position)))
-            .sum();
-        Ok(GeodesicPath {
-            points,
-            source: Some(label as usize),
-            length,
-        })
+        Ok(GeodesicPath::from_points(points, Some(label as usize)))
     }
 
     /// The corner of `face` nearest to `p`.

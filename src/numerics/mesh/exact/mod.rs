@@ -364,6 +364,27 @@ pub fn exact_distance_with_stats(
     max_distance: f64,
     control: &Control<'_>,
 ) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
+    check_inputs(mesh, topo, sources)?;
+    if max_distance.is_nan() || max_distance < 0.0 {
+        return Err(MeshSolveError::InvalidOption {
+            option: "max_distance",
+            reason: format!("must be >= 0, got {max_distance}"),
+        });
+    }
+    let mut p = Propagation::new(mesh, topo, max_distance);
+    p.seed(sources);
+    p.run(control)?;
+    Ok(p.finish())
+}
+
+/// The checks shared by [`exact_distance_with_stats`] and [`exact_paths`]:
+/// at least one source, every source on the mesh, and a topology built
+/// from this mesh.
+fn check_inputs(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+) -> Result<(), MeshSolveError> {
     if sources.is_empty() {
         return Err(MeshSolveError::NoSources);
     }
@@ -371,22 +392,13 @@ pub fn exact_distance_with_stats(
         s.validate(mesh)
             .map_err(|reason| MeshSolveError::InvalidSource { index, reason })?;
     }
-    if max_distance.is_nan() || max_distance < 0.0 {
-        return Err(MeshSolveError::InvalidOption {
-            option: "max_distance",
-            reason: format!("must be >= 0, got {max_distance}"),
-        });
-    }
     if topo.opposite.len() != 3 * mesh.num_faces() || topo.component.len() != mesh.num_vertices() {
         return Err(MeshSolveError::InvalidOption {
             option: "topology",
             reason: "was not built from this mesh".into(),
         });
     }
-    let mut p = Propagation::new(mesh, topo, max_distance);
-    p.seed(sources);
-    p.run(control)?;
-    Ok(p.finish())
+    Ok(())
 }
 
 /// Most steps (window and vertex pops) of one propagation before it is
