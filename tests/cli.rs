@@ -623,3 +623,121 @@ fn phi_signed_is_the_redistancing_and_a_source_mask_is_zero() {
         "{line}"
     );
 }
+
+#[test]
+fn cost_gradient_writes_the_library_adjoint_and_names_bad_targets() {
+    use geodex::numerics::eikonal::{cost_gradient, Probe};
+    let dir = TempDir::new().unwrap();
+    let shape = [30, 26];
+    let cost = cost_field(&shape);
+    let cost_path = path(&dir, "w.npy");
+    write_npy(&cost_path, &cost).unwrap();
+    let targets = ndarray::arr2(&[[25.0, 20.0], [12.5, 22.25]]);
+    let targets_path = path(&dir, "y.npy");
+    write_npy(&targets_path, &targets).unwrap();
+    let observed_path = path(&dir, "t.npy");
+    write_npy(&observed_path, &ndarray::arr1(&[10.0, 40.0])).unwrap();
+    let out = path(&dir, "g.npy");
+    let json = path(&dir, "r.json");
+    let o = geodex(&[
+        "cost-gradient",
+        "--cost",
+        s(&cost_path),
+        "--source",
+        "2,3",
+        "--target",
+        "5,20:0.5",
+        "--targets",
+        s(&targets_path),
+        "--observed",
+        s(&observed_path),
+        "--misfit",
+        "--order",
+        "1",
+        "--out",
+        s(&out),
+        "--json",
+        s(&json),
+    ]);
+    // Three targets but two observed values: refused, naming the flag.
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--observed") && err.contains("2 observed values for 3 targets"),
+        "{err}"
+    );
+
+    write_npy(&observed_path, &ndarray::arr1(&[10.0, 40.0, 3.0])).unwrap();
+    let o = geodex(&[
+        "cost-gradient",
+        "--cost",
+        s(&cost_path),
+        "--source",
+        "2,3",
+        "--target",
+        "5,20:0.5",
+        "--targets",
+        s(&targets_path),
+        "--observed",
+        s(&observed_path),
+        "--misfit",
+        "--order",
+        "1",
+        "--out",
+        s(&out),
+        "--json",
+        s(&json),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got: ArrayD<f64> = read_npy(&out).unwrap();
+
+    // The same adjoint from the library: weights w (U − T).
+    let grid = Grid::new(&shape, &[1.0, 1.0]).unwrap();
+    let values: Vec<f64> = cost.iter().copied().collect();
+    let problem = EikonalProblem {
+        grid,
+        cost: IsotropicCost::new(
+            &Grid::new(&shape, &[1.0, 1.0]).unwrap(),
+            CostValues::F64(Cow::Borrowed(&values)),
+            Interpretation::Cost,
+            None,
+        )
+        .unwrap(),
+        sources: vec![Source::Point(vec![2.0, 3.0])],
+    };
+    let mut options = EikonalOptions::DEFAULT
+        .with_method(Method::FastMarching)
+        .with_order(Order::First)
+        .with_factoring(false);
+    options.record_order = true;
+    let solved = solve(&problem, &options, &Control::new()).unwrap();
+    let points = [vec![5.0, 20.0], vec![25.0, 20.0], vec![12.5, 22.25]];
+    let probes: Vec<Probe> = points.iter().map(|p| Probe::Point(p.clone())).collect();
+    let u = geodex::numerics::eikonal::probe_values(&problem, &solved, &probes).unwrap();
+    let weights: Vec<(Probe, f64)> = probes
+        .into_iter()
+        .zip([0.5 * (u[0] - 10.0), u[1] - 40.0, u[2] - 3.0])
+        .collect();
+    let expected = cost_gradient(&problem, &options, &solved, &weights, &Control::new()).unwrap();
+    assert_same(&got, &expected);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["objective"]["kind"], "misfit");
+    assert!((doc["targets"][1]["residual"].as_f64().unwrap() - (u[1] - 40.0)).abs() < 1e-12);
+
+    // A target outside the grid names its flag.
+    let line = one_error_line(&[
+        "cost-gradient",
+        "--cost",
+        s(&cost_path),
+        "--source",
+        "2,3",
+        "--target",
+        "5,20",
+        "--target",
+        "5,26",
+        "--out",
+        s(&out),
+    ]);
+    assert!(line.contains("--target 2"), "{line}");
+}

@@ -162,6 +162,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"image": shaded, "anchors": {"kind": "border"}}),
         ),
         (
+            "grid.cost_gradient",
+            "/v1/grid/cost-gradient",
+            json!({"cost": {"constant": 1.0, "shape": [n, n]}, "sources": src, "targets": [{"point": [0.0, 0.0]}], "distance": false}),
+        ),
+        (
             "grid.tensor_distance",
             "/v1/grid/tensor-distance",
             json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),

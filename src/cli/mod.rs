@@ -11,6 +11,7 @@ use crate::config::ServeArgs;
 pub mod bench;
 mod bench_tensor;
 pub mod distance;
+pub mod gradient;
 pub mod path;
 mod run;
 pub mod segment;
@@ -76,6 +77,8 @@ pub enum Command {
     Mesh(segment::MeshArgs),
     /// Mesh a planar domain (a mask or GeoJSON polygons with holes): boundary first, angles >= 25 deg.
     MeshDomain(segment::DomainMeshArgs),
+    /// Gradient of geodesic distances with respect to the cost (the discrete adjoint of fast marching).
+    CostGradient(gradient::CostGradientArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -104,6 +107,7 @@ pub fn main() -> ExitCode {
         Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
         Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
         Some(Command::MeshDomain(args)) => segment::run_domain_mesh(&args).map_err(Into::into),
+        Some(Command::CostGradient(args)) => gradient::run(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -52,7 +52,7 @@ pub enum SegmentCliError {
     },
 }
 
-fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
+pub(super) fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
     SegmentCliError::Flag {
         flag: name.into(),
         reason: reason.into(),
@@ -353,7 +353,7 @@ pub struct DomainMeshArgs {
     pub stats: Option<PathBuf>,
 }
 
-fn read(
+pub(super) fn read(
     name: &str,
     path: &Path,
     inputs: &mut HashMap<String, InputArray>,
@@ -377,13 +377,17 @@ fn read(
     Ok(id)
 }
 
-fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
+pub(super) fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
     let bytes = io::encode_npy(array).map_err(|e| flag(name, e.to_string()))?;
     std::fs::write(path, bytes)
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
 }
 
-fn write_json(name: &str, path: &Path, v: &serde_json::Value) -> Result<(), SegmentCliError> {
+pub(super) fn write_json(
+    name: &str,
+    path: &Path,
+    v: &serde_json::Value,
+) -> Result<(), SegmentCliError> {
     let s = serde_json::to_string(v).map_err(|e| flag(name, e.to_string()))?;
     std::fs::write(path, s)
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
@@ -443,7 +447,7 @@ fn execute<O: Operation + Clone + std::fmt::Debug>(
     Ok((ran.output, ran.timing.run_seconds))
 }
 
-fn array<'a>(out: &'a OpOutput, name: &str) -> Option<&'a ArrayData> {
+pub(super) fn array<'a>(out: &'a OpOutput, name: &str) -> Option<&'a ArrayData> {
     out.arrays.iter().find(|a| a.name == name).map(|a| &a.array)
 }
 
@@ -460,7 +464,7 @@ fn save(
 }
 
 /// The `cost` of a request from `--cost W.npy` or `--shape N,M[,P]` (unit cost).
-fn cost_of(
+pub(super) fn cost_of(
     cost: &Option<PathBuf>,
     shape: &Option<Vec<usize>>,
     inputs: &mut HashMap<String, InputArray>,

@@ -24,6 +24,7 @@
 //!   [`spec::shape`]).
 
 pub mod domain_mesh;
+pub mod grid_cost_gradient;
 pub mod grid_distance;
 pub mod grid_edt;
 pub mod grid_mesh;

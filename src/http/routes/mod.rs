@@ -6,6 +6,7 @@
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
+//! * [`gradient`]: `POST /v1/grid/cost-gradient`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
@@ -16,6 +17,7 @@
 
 pub mod datasets;
 pub mod docs;
+pub mod gradient;
 pub mod grid;
 pub mod health;
 pub mod jobs;

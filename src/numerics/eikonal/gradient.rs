@@ -234,6 +234,34 @@ pub fn distance_gradient(
     cost_gradient(problem, options, output, &[(probe, 1.0)], control)
 }
 
+/// The value `U(y_m)` the objective of [`cost_gradient`] reads at each
+/// probe: the cell's value, or the multilinear interpolation of the `2^d`
+/// cells around a point. Refused like the probes of [`cost_gradient`]
+/// (outside the grid, a corner not reached), with the probe's index in
+/// `weights[m]` of the reason.
+pub fn probe_values(
+    problem: &EikonalProblem<'_>,
+    output: &EikonalOutput,
+    probes: &[Probe],
+) -> Result<Vec<f64>, EikonalError> {
+    let u = flat(&output.distance);
+    probes
+        .iter()
+        .enumerate()
+        .map(|(m, probe)| {
+            let corners =
+                probe_weights(problem, &u, &[(probe.clone(), 1.0)]).map_err(|e| match e {
+                    EikonalError::Option { field, reason } => EikonalError::Option {
+                        field,
+                        reason: reason.replacen("weights[0]", &format!("weights[{m}]"), 1),
+                    },
+                    other => other,
+                })?;
+            Ok(corners.iter().map(|&(i, w)| w * u[i]).sum())
+        })
+        .collect()
+}
+
 /// Refuses the options whose scheme is not the one differentiated here.
 fn check_options(options: &EikonalOptions, output: &EikonalOutput) -> Result<(), EikonalError> {
     let refuse = |field: &'static str, what: &str| {
