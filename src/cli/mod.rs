@@ -11,6 +11,7 @@ use crate::config::ServeArgs;
 pub mod bench;
 mod bench_tensor;
 pub mod distance;
+pub mod inverse;
 pub mod path;
 mod run;
 pub mod segment;
@@ -76,6 +77,10 @@ pub enum Command {
     Mesh(segment::MeshArgs),
     /// Mesh a planar domain (a mask or GeoJSON polygons with holes): boundary first, angles >= 25 deg.
     MeshDomain(segment::DomainMeshArgs),
+    /// Recover a slowness map from travel times (first-arrival tomography).
+    Tomography(inverse::TomographyArgs),
+    /// Fit an intensity metric so that its minimal paths follow example paths.
+    FitMetric(inverse::FitMetricArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -104,6 +109,8 @@ pub fn main() -> ExitCode {
         Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
         Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
         Some(Command::MeshDomain(args)) => segment::run_domain_mesh(&args).map_err(Into::into),
+        Some(Command::Tomography(args)) => inverse::run_tomography(&args).map_err(Into::into),
+        Some(Command::FitMetric(args)) => inverse::run_fit_metric(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -52,7 +52,7 @@ pub enum SegmentCliError {
     },
 }
 
-fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
+pub(super) fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
     SegmentCliError::Flag {
         flag: name.into(),
         reason: reason.into(),
@@ -353,7 +353,7 @@ pub struct DomainMeshArgs {
     pub stats: Option<PathBuf>,
 }
 
-fn read(
+pub(super) fn read(
     name: &str,
     path: &Path,
     inputs: &mut HashMap<String, InputArray>,
@@ -377,13 +377,17 @@ fn read(
     Ok(id)
 }
 
-fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
+pub(super) fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
     let bytes = io::encode_npy(array).map_err(|e| flag(name, e.to_string()))?;
     std::fs::write(path, bytes)
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
 }
 
-fn write_json(name: &str, path: &Path, v: &serde_json::Value) -> Result<(), SegmentCliError> {
+pub(super) fn write_json(
+    name: &str,
+    path: &Path,
+    v: &serde_json::Value,
+) -> Result<(), SegmentCliError> {
     let s = serde_json::to_string(v).map_err(|e| flag(name, e.to_string()))?;
     std::fs::write(path, s)
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
@@ -409,14 +413,17 @@ fn flag_of(field: &str) -> String {
         "start" => "--start".into(),
         "goal" => "--goal".into(),
         "count" => "--count".into(),
-        "dataset" => "--image".into(),
+        "dataset" | "image" => "--image".into(),
+        "sources" | "receivers" | "times" => "--data".into(),
+        "examples" => "--examples".into(),
+        "design" => "--value".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
     }
 }
 
-fn execute<O: Operation + Clone + std::fmt::Debug>(
+pub(super) fn execute<O: Operation + Clone + std::fmt::Debug>(
     request: &O,
     inputs: &HashMap<String, InputArray>,
     threads: Option<usize>,

@@ -7,6 +7,7 @@
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`paths`]: `POST /v1/grid/paths`.
+//! * [`inverse`]: `POST /v1/grid/tomography`, `POST /v1/grid/fit-metric`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
 //! * [`points`]: `POST /v1/points/isomap`.
@@ -18,6 +19,7 @@ pub mod datasets;
 pub mod docs;
 pub mod grid;
 pub mod health;
+pub mod inverse;
 pub mod jobs;
 pub mod mesh;
 pub mod metric;
