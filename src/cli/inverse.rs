@@ -2,7 +2,7 @@
 //! `grid.tomography` and `grid.fit_metric` from files.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 
@@ -96,7 +96,7 @@ struct Data {
 
 fn read_json<T: serde::de::DeserializeOwned>(
     name: &str,
-    path: &PathBuf,
+    path: &Path,
 ) -> Result<T, SegmentCliError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| flag(name, format!("cannot read '{}': {e}", path.display())))?;

@@ -435,13 +435,13 @@ impl Model<'_> {
                 g.iter_mut().zip(part.iter()).for_each(|(x, y)| *x += y);
             }
         }
-        smoothness(&p.grid, w, self.alpha, Some(&mut g));
+        smoothness(&p.grid, w, self.alpha, Some(g.as_mut_slice()));
         Ok(g)
     }
 }
 
 /// `R(W) = (α/2) Σ_k Σ_x ((W_{x+e_k} − W_x)/h_k)²`; adds `∂R/∂W` to `grad` if given.
-fn smoothness(grid: &Grid, w: &[f64], alpha: f64, mut grad: Option<&mut Vec<f64>>) -> f64 {
+fn smoothness(grid: &Grid, w: &[f64], alpha: f64, mut grad: Option<&mut [f64]>) -> f64 {
     if alpha == 0.0 {
         return 0.0;
     }
@@ -449,13 +449,13 @@ fn smoothness(grid: &Grid, w: &[f64], alpha: f64, mut grad: Option<&mut Vec<f64>
     let strides = grid.strides3();
     let h = grid.spacing3();
     let mut r = 0.0;
-    for i in 0..w.len() {
+    for (i, &wi) in w.iter().enumerate() {
         let idx = grid.unravel(i);
         for k in 0..3 {
             if idx[k] + 1 < shape[k] {
                 let j = i + strides[k];
                 let c = 1.0 / (h[k] * h[k]);
-                let d = w[j] - w[i];
+                let d = w[j] - wi;
                 r += c * d * d;
                 if let Some(g) = grad.as_deref_mut() {
                     g[j] += alpha * c * d;
@@ -513,7 +513,7 @@ pub fn tomography(
         .iter()
         .zip(problem.times)
         .fold((0.0, 0.0), |(lt, ll), (l, t)| (lt + l * t, ll + l * l));
-    if !(ll > 0.0) {
+    if ll.is_nan() || ll <= 0.0 {
         return Err(TomographyError::Input {
             field: "receivers",
             reason: "every receiver is at its source: no path to measure".into(),
@@ -810,7 +810,8 @@ mod tests {
         let s = vec![vec![0.0, 0.0]];
         let r = vec![vec![7.0, 7.0], vec![7.0, 0.0]];
         let outside = vec![vec![7.0, 8.5]];
-        let cases: [(&[Vec<f64>], &[f64], &str); 4] = [
+        type Case<'a> = (&'a [Vec<f64>], &'a [f64], &'a str);
+        let cases: [Case<'_>; 4] = [
             (&r, &[1.0], "times"),
             (&r, &[1.0, f64::NAN], "times"),
             (&outside, &[1.0], "receivers"),
