@@ -167,6 +167,18 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"cost": {"constant": 1.0, "shape": [n, n]}, "sources": src, "targets": [{"point": [0.0, 0.0]}], "distance": false}),
         ),
         (
+            "grid.tomography",
+            "/v1/grid/tomography",
+            json!({"shape": [2000, 2000], "sources": [[0.0, 0.0], [0.0, 1999.0]],
+                   "receivers": [[1999.0, 0.0], [1999.0, 1999.0]],
+                   "times": [[2000.0, 2800.0], [2800.0, 2000.0]]}),
+        ),
+        (
+            "grid.fit_metric",
+            "/v1/grid/fit-metric",
+            json!({"image": small_image, "examples": [[[1.0, 1.0], [500.0, 700.0], [998.0, 998.0]]]}),
+        ),
+        (
             "grid.tensor_distance",
             "/v1/grid/tensor-distance",
             json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),

@@ -86,6 +86,8 @@ const CONTROL_SUFFIXES: &[&str] = &["_transform"];
 /// and the `TensorField` constructors (one validation pass).
 const CONTROL_ENTRY_POINTS: &[(&str, &str)] = &[
     ("src/numerics/edt.rs", "edt"),
+    ("src/numerics/inverse/tomography.rs", "tomography"),
+    ("src/numerics/inverse/metric_fit.rs", "fit_metric"),
     ("src/numerics/edt.rs", "edt_squared"),
     ("src/numerics/edt.rs", "signed_edt"),
     ("src/numerics/edt.rs", "multilabel_edt"),

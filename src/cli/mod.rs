@@ -12,6 +12,7 @@ pub mod bench;
 mod bench_tensor;
 pub mod distance;
 pub mod gradient;
+pub mod inverse;
 pub mod path;
 mod run;
 pub mod segment;
@@ -79,6 +80,10 @@ pub enum Command {
     MeshDomain(segment::DomainMeshArgs),
     /// Gradient of geodesic distances with respect to the cost (the discrete adjoint of fast marching).
     CostGradient(gradient::CostGradientArgs),
+    /// Recover a slowness map from travel times (first-arrival tomography).
+    Tomography(inverse::TomographyArgs),
+    /// Fit an intensity metric so that its minimal paths follow example paths.
+    FitMetric(inverse::FitMetricArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -108,6 +113,8 @@ pub fn main() -> ExitCode {
         Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
         Some(Command::MeshDomain(args)) => segment::run_domain_mesh(&args).map_err(Into::into),
         Some(Command::CostGradient(args)) => gradient::run(&args).map_err(Into::into),
+        Some(Command::Tomography(args)) => inverse::run_tomography(&args).map_err(Into::into),
+        Some(Command::FitMetric(args)) => inverse::run_fit_metric(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

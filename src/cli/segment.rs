@@ -413,14 +413,17 @@ fn flag_of(field: &str) -> String {
         "start" => "--start".into(),
         "goal" => "--goal".into(),
         "count" => "--count".into(),
-        "dataset" => "--image".into(),
+        "dataset" | "image" => "--image".into(),
+        "sources" | "receivers" | "times" => "--data".into(),
+        "examples" => "--examples".into(),
+        "design" => "--value".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
     }
 }
 
-fn execute<O: Operation + Clone + std::fmt::Debug>(
+pub(super) fn execute<O: Operation + Clone + std::fmt::Debug>(
     request: &O,
     inputs: &HashMap<String, InputArray>,
     threads: Option<usize>,

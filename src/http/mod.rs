@@ -88,6 +88,8 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::segment::domain_mesh))
         .routes(routes!(routes::shading::shape_from_shading))
         .routes(routes!(routes::gradient::cost_gradient))
+        .routes(routes!(routes::inverse::tomography))
+        .routes(routes!(routes::inverse::fit_metric))
         .routes(routes!(routes::metric::metric))
         .routes(routes!(routes::paths::paths))
         .routes(routes!(routes::tensor::tensor_distance))

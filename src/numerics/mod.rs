@@ -33,6 +33,8 @@
 //!   Delaunay triangulations with their repair, Lloyd relaxation.
 //! * [`meshing`]: meshes made from a metric (image meshing).
 //! * [`shading`]: shape from shading (a Lambertian surface's height from its image) by fast marching.
+//! * [`inverse`]: inverse problems through the adjoint of fast marching: travel-time
+//!   tomography, metric fitting to example paths.
 //! * [`shape`]: distance matrices, MDS, SMACOF, Isomap and canonical forms (chapter 5).
 
 pub mod anisotropic;
@@ -44,6 +46,7 @@ pub mod exact;
 pub mod filters;
 pub mod grid;
 pub mod heap;
+pub mod inverse;
 pub mod mesh;
 pub mod meshing;
 pub mod metric;

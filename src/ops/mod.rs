@@ -11,6 +11,8 @@
 //! * [`grid_mesh`]: `grid.mesh`, image meshing by geodesic Delaunay (a new mesh dataset).
 //! * [`domain_mesh`]: `domain.mesh`, domain meshing of a mask or polygons (a new mesh dataset).
 //! * [`grid_shading`]: `grid.shape_from_shading`, a surface's height from its image (shape from shading).
+//! * [`grid_tomography`]: `grid.tomography`, a slowness map from travel times (adjoint tomography).
+//! * [`grid_fit_metric`]: `grid.fit_metric`, an intensity metric fitted to example paths.
 //! * [`grid_metric`]: `grid.metric`, a cost designed from an image, and the `cost.design` section.
 //! * [`grid_paths`]: `grid.paths`, minimal paths (end points, way-points, closed contours) and their cache.
 //! * [`grid_tensor_distance`]: `grid.tensor_distance`, the Riemannian distance map (and paths) of a tensor metric.
@@ -27,6 +29,7 @@ pub mod domain_mesh;
 pub mod grid_cost_gradient;
 pub mod grid_distance;
 pub mod grid_edt;
+pub mod grid_fit_metric;
 pub mod grid_mesh;
 pub mod grid_metric;
 pub mod grid_offset;
@@ -38,6 +41,7 @@ pub mod grid_shading;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
+pub mod grid_tomography;
 pub mod mesh_distance;
 pub mod mesh_distance_matrix;
 pub mod mesh_embed;

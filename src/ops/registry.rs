@@ -61,6 +61,8 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::domain_mesh::DomainMeshRequest>(),
     entry::<super::grid_shading::GridShadingRequest>(),
     entry::<super::grid_cost_gradient::GridCostGradientRequest>(),
+    entry::<super::grid_tomography::GridTomographyRequest>(),
+    entry::<super::grid_fit_metric::GridFitMetricRequest>(),
     entry::<super::grid_tensor_distance::GridTensorDistanceRequest>(),
     entry::<super::grid_tensor_metric::GridTensorMetricRequest>(),
     entry::<super::mesh_distance::MeshDistanceRequest>(),

@@ -8,6 +8,7 @@
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`gradient`]: `POST /v1/grid/cost-gradient`.
 //! * [`paths`]: `POST /v1/grid/paths`.
+//! * [`inverse`]: `POST /v1/grid/tomography`, `POST /v1/grid/fit-metric`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
 //! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
 //! * [`points`]: `POST /v1/points/isomap`.
@@ -20,6 +21,7 @@ pub mod docs;
 pub mod gradient;
 pub mod grid;
 pub mod health;
+pub mod inverse;
 pub mod jobs;
 pub mod mesh;
 pub mod metric;
