@@ -833,11 +833,12 @@ mod tests {
         let s0 = structure(&base, opts, &out);
         let replay = Replay::new(&base, opts, &out, &Control::new()).unwrap();
         let (mut second, mut fallback) = (0, 0);
-        for x in 0..grid.len() {
-            if let (_, Some((fb, cells)), _) = &s0[x] {
+        for (x, entry) in s0.iter().enumerate() {
+            if let (_, Some((fb, cells)), _) = entry {
                 fallback += usize::from(*fb);
                 let r = replay.row(x).unwrap().unwrap();
-                // A second-order term reads a coefficient −1/3 · ...
+                // A second-order term reads its second neighbour with a
+                // negative coefficient (−1/3 of the term's).
                 second +=
                     usize::from(!fb && cells.len() > r.du().iter().filter(|d| d.1 > 0.0).count());
             }

@@ -77,6 +77,7 @@ pub struct TensorOptions {
     /// Early stopping.
     pub stop: StopRules,
     /// Also return the rank at which each cell was frozen. Default: false.
+    /// The metric gradient ([`metric_gradient`]) of an order-2 solve needs it.
     pub record_order: bool,
 }
 
