@@ -74,9 +74,9 @@ const WALL: u32 = FIRST_TAG + 1;
 /// A point source kept for factoring: position (padded index coordinates)
 /// and the metric in index units `H M_p H` (padded 3×3).
 #[derive(Debug, Clone, Copy)]
-struct FactorPoint {
-    p: [f64; 3],
-    m: [[f64; 3]; 3],
+pub(super) struct FactorPoint {
+    pub(super) p: [f64; 3],
+    pub(super) m: [[f64; 3]; 3],
 }
 
 impl FactorPoint {
@@ -111,7 +111,7 @@ impl FactorPoint {
     }
 
     #[inline]
-    fn at(&self, x: [f64; 3]) -> f64 {
+    pub(super) fn at(&self, x: [f64; 3]) -> f64 {
         self.norm([x[0] - self.p[0], x[1] - self.p[1], x[2] - self.p[2]])
     }
 }
@@ -143,17 +143,28 @@ pub(super) fn index_metric(grid: &Grid, m: &[f64]) -> [[f64; 3]; 3] {
     out
 }
 
+/// One term `c2 ((U − b)⁺)²` of the update.
 #[derive(Debug, Clone, Copy, Default)]
-struct Term {
-    c2: f64,
-    b: f64,
-    label: i32,
+pub(super) struct Term {
+    pub(super) c2: f64,
+    pub(super) b: f64,
+    pub(super) label: i32,
     /// The neighbour's own value (causality check of the factored update).
-    a: f64,
+    pub(super) a: f64,
     /// The neighbour `x_j` (`w = x − x_j`: `s (U − b) ≈ ⟨∇U, w⟩`).
-    j: u32,
+    pub(super) j: u32,
     /// A second-order difference: `s = √(c2 / ρ)` is 3/2, else 1.
-    second: bool,
+    pub(super) second: bool,
+}
+
+/// The values the sources give before the march: `u` and `labels` on the
+/// seed cells (`fixed`), `+inf` and `-1` elsewhere, and per source its
+/// factoring point (`Some` for a point source).
+pub(super) struct Seeds {
+    pub(super) u: Vec<f64>,
+    pub(super) labels: Vec<i32>,
+    pub(super) fixed: Vec<bool>,
+    pub(super) factor: Vec<Option<FactorPoint>>,
 }
 
 pub(super) fn solve(
@@ -165,15 +176,108 @@ pub(super) fn solve(
     let grid = &problem.grid;
     let metric = &problem.metric;
     let n = grid.len();
-    let mut u = vec![f64::INFINITY; n];
-    let mut labels = vec![-1i32; n];
-    let mut fixed = vec![false; n];
+    let Seeds {
+        mut u,
+        mut labels,
+        fixed,
+        factor,
+    } = seeds(problem, st, options)?;
     let mut heap = IndexedHeap::new(n);
     for i in 0..n {
         if metric.is_wall(i) {
             heap.tag(i as u32, WALL);
         }
     }
+    for i in 0..n {
+        if fixed[i] {
+            heap.push(i as u32, u[i]);
+        }
+    }
+    let mut targets = target_cells(grid, &options.stop.targets)?;
+    targets.sort_unstable();
+    targets.dedup();
+    let mut remaining = targets.len();
+    let mut order = options.record_order.then(|| vec![-1i64; n]);
+    let second = options.order == Order::Second;
+    let factoring = options.factoring && factor.iter().any(Option::is_some);
+    let ctx = Ctx {
+        st,
+        grid,
+        metric,
+        second,
+        factor: if factoring { &factor } else { &[] },
+    };
+    let mut frozen = 0usize;
+    let mut stop = StopReason::Completed;
+    while let Some((i, ui)) = heap.pop() {
+        let i = i as usize;
+        if let Some(d) = options.stop.max_distance {
+            if ui > d {
+                stop = StopReason::MaxDistance;
+                break;
+            }
+        }
+        heap.tag(i as u32, FROZEN);
+        if let Some(o) = order.as_mut() {
+            o[i] = frozen as i64;
+        }
+        frozen += 1;
+        if frozen.is_multiple_of(8192) {
+            if control.is_cancelled() {
+                return Err(EikonalError::Cancelled.into());
+            }
+            control.report(frozen as f64 / n as f64);
+        }
+        if remaining > 0 && targets.binary_search(&i).is_ok() {
+            remaining -= 1;
+            if remaining == 0 {
+                stop = StopReason::TargetsReached;
+                break;
+            }
+        }
+        if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
+            stop = StopReason::MaxFrozen;
+            break;
+        }
+        for &y in st.reverse(i) {
+            let y = y as usize;
+            let state = heap.state(y as u32);
+            if fixed[y] || state == FROZEN || state == WALL {
+                continue;
+            }
+            if let Some((v, label)) = ctx.update(y, ui, &u, &labels, &heap) {
+                if v < u[y] {
+                    u[y] = v;
+                    labels[y] = label;
+                    heap.push_or_decrease(y as u32, v);
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        if heap.state(i as u32) != FROZEN {
+            u[i] = f64::INFINITY;
+            labels[i] = -1;
+        }
+    }
+    control.report(1.0);
+    Ok(finish(grid, u, labels, order, frozen, stop, None))
+}
+
+/// The seeds of the sources (see [`Seeds`]): the exact local value
+/// `‖x − p‖_{M(p)}` around a point source `p` (metric of its nearest cell),
+/// the given values on a cell source, the smallest where they overlap.
+pub(super) fn seeds(
+    problem: &TensorProblem,
+    st: &Stencils,
+    options: &TensorOptions,
+) -> Result<Seeds, TensorSolveError> {
+    let grid = &problem.grid;
+    let metric = &problem.metric;
+    let n = grid.len();
+    let mut u = vec![f64::INFINITY; n];
+    let mut labels = vec![-1i32; n];
+    let mut fixed = vec![false; n];
     // Sources.
     let mut factor: Vec<Option<FactorPoint>> = vec![None; problem.sources.len()];
     for (index, source) in problem.sources.iter().enumerate() {
@@ -261,80 +365,12 @@ pub(super) fn solve(
             }
         }
     }
-    for i in 0..n {
-        if fixed[i] {
-            heap.push(i as u32, u[i]);
-        }
-    }
-    let mut targets = target_cells(grid, &options.stop.targets)?;
-    targets.sort_unstable();
-    targets.dedup();
-    let mut remaining = targets.len();
-    let mut order = options.record_order.then(|| vec![-1i64; n]);
-    let second = options.order == Order::Second;
-    let factoring = options.factoring && factor.iter().any(Option::is_some);
-    let ctx = Ctx {
-        st,
-        grid,
-        metric,
-        second,
-        factor: if factoring { &factor } else { &[] },
-    };
-    let mut frozen = 0usize;
-    let mut stop = StopReason::Completed;
-    while let Some((i, ui)) = heap.pop() {
-        let i = i as usize;
-        if let Some(d) = options.stop.max_distance {
-            if ui > d {
-                stop = StopReason::MaxDistance;
-                break;
-            }
-        }
-        heap.tag(i as u32, FROZEN);
-        if let Some(o) = order.as_mut() {
-            o[i] = frozen as i64;
-        }
-        frozen += 1;
-        if frozen.is_multiple_of(8192) {
-            if control.is_cancelled() {
-                return Err(EikonalError::Cancelled.into());
-            }
-            control.report(frozen as f64 / n as f64);
-        }
-        if remaining > 0 && targets.binary_search(&i).is_ok() {
-            remaining -= 1;
-            if remaining == 0 {
-                stop = StopReason::TargetsReached;
-                break;
-            }
-        }
-        if options.stop.max_frozen.is_some_and(|m| frozen >= m) {
-            stop = StopReason::MaxFrozen;
-            break;
-        }
-        for &y in st.reverse(i) {
-            let y = y as usize;
-            let state = heap.state(y as u32);
-            if fixed[y] || state == FROZEN || state == WALL {
-                continue;
-            }
-            if let Some((v, label)) = ctx.update(y, ui, &u, &labels, &heap) {
-                if v < u[y] {
-                    u[y] = v;
-                    labels[y] = label;
-                    heap.push_or_decrease(y as u32, v);
-                }
-            }
-        }
-    }
-    for i in 0..n {
-        if heap.state(i as u32) != FROZEN {
-            u[i] = f64::INFINITY;
-            labels[i] = -1;
-        }
-    }
-    control.report(1.0);
-    Ok(finish(grid, u, labels, order, frozen, stop, None))
+    Ok(Seeds {
+        u,
+        labels,
+        fixed,
+        factor,
+    })
 }
 
 struct Ctx<'a> {
@@ -597,9 +633,38 @@ pub(crate) fn semi_lagrangian(
     labels: &[i32],
     known: &dyn Fn(usize) -> bool,
 ) -> Option<(f64, i32)> {
+    semi_lagrangian_choice(grid, metric, y, mask, u, labels, known).map(|c| (c.value, c.label))
+}
+
+/// The minimiser of the [`semi_lagrangian`] update: its value
+/// `(1 − t) U(y1) + t U(y2) + ‖w‖_{HMH}` with `w` the displacement from
+/// `(1 − t) y1 + t y2` to the cell (index units, padded 3D), `t` in `[0, 1]`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SlChoice {
+    pub(super) value: f64,
+    pub(super) label: i32,
+    pub(super) y1: usize,
+    /// The second neighbour, `None` for a single-neighbour step (`t = 0`).
+    pub(super) y2: Option<usize>,
+    pub(super) t: f64,
+    pub(super) w: [f64; 3],
+    /// `‖w‖_{HMH}`.
+    pub(super) len: f64,
+}
+
+/// [`semi_lagrangian`] with the minimiser (see [`SlChoice`]).
+pub(super) fn semi_lagrangian_choice(
+    grid: &Grid,
+    metric: &super::TensorField,
+    y: usize,
+    mask: u32,
+    u: &[f64],
+    labels: &[i32],
+    known: &dyn Fn(usize) -> bool,
+) -> Option<SlChoice> {
     let m = index_metric(grid, metric.at(y));
     let x = grid.unravel(y);
-    let mut nbrs: [([f64; 3], f64, i32); 26] = [([0.0; 3], 0.0, 0); 26];
+    let mut nbrs: [([f64; 3], f64, i32, usize); 26] = [([0.0; 3], 0.0, 0, 0); 26];
     let mut cnt = 0;
     for (b, o) in NEIGHBOURS.iter().enumerate() {
         if mask & (1 << b) == 0 {
@@ -611,7 +676,7 @@ pub(crate) fn semi_lagrangian(
             (x[2] as i64 + o[2]) as usize,
         ]);
         if known(j) {
-            nbrs[cnt] = (o.map(|v| v as f64), u[j], labels[j]);
+            nbrs[cnt] = (o.map(|v| v as f64), u[j], labels[j], j);
             cnt += 1;
         }
     }
@@ -624,19 +689,28 @@ pub(crate) fn semi_lagrangian(
         }
         s
     };
-    let mut best: Option<(f64, i32)> = None;
-    let mut offer = |v: f64, l: i32| {
-        if v.is_finite() && best.is_none_or(|(bv, _)| v < bv) {
-            best = Some((v, l));
+    let mut best: Option<SlChoice> = None;
+    let mut offer = |c: SlChoice| {
+        if c.value.is_finite() && best.is_none_or(|b| c.value < b.value) {
+            best = Some(c);
         }
     };
     for p in &nbrs[..cnt] {
-        offer(p.1 + quad(p.0, p.0).max(0.0).sqrt(), p.2);
+        let len = quad(p.0, p.0).max(0.0).sqrt();
+        offer(SlChoice {
+            value: p.1 + len,
+            label: p.2,
+            y1: p.3,
+            y2: None,
+            t: 0.0,
+            w: p.0.map(|v| -v),
+            len,
+        });
     }
     for i1 in 0..cnt {
         for i2 in i1 + 1..cnt {
-            let (o1, a, l1) = nbrs[i1];
-            let (o2, b, l2) = nbrs[i2];
+            let (o1, a, l1, j1) = nbrs[i1];
+            let (o2, b, l2, j2) = nbrs[i2];
             if (0..3).any(|k| (o1[k] - o2[k]).abs() > 1.0) {
                 continue;
             }
@@ -652,7 +726,15 @@ pub(crate) fn semi_lagrangian(
             let s = -delta.signum() * delta.abs() * (k / (aa - delta * delta)).sqrt();
             let t = ((s + bb) / aa).clamp(0.0, 1.0);
             let len = (aa * t * t - 2.0 * bb * t + cc).max(0.0).sqrt();
-            offer(a + t * delta + len, if t < 0.5 { l1 } else { l2 });
+            offer(SlChoice {
+                value: a + t * delta + len,
+                label: if t < 0.5 { l1 } else { l2 },
+                y1: j1,
+                y2: Some(j2),
+                t,
+                w: [0, 1, 2].map(|k| w0[k] - t * d[k]),
+                len,
+            });
         }
     }
     best
@@ -723,7 +805,7 @@ pub(crate) fn first_order_update(
 /// The root `U > min b` of `Σ c2 ((U − b)⁺)² = 1`, adding terms in
 /// increasing `b`; the label is that of the term contributing most, and the
 /// smallest neighbour value among the terms used.
-fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
+pub(super) fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, i32, f64)> {
     if t.is_empty() {
         return None;
     }

@@ -25,18 +25,22 @@
 //! * [`selling`]: Selling's decomposition in 2D and 3D.
 //! * [`stencil`]: per-cell stencils, wall tests, reverse stencils.
 //! * [`fast_marching`]: the solver.
+//! * [`gradient`]: the gradient of the distance with respect to the metric
+//!   (the discrete adjoint of the unfactored solver).
 //! * [`structure_tensor`]: the edge-following metric of an image (seed 1.3.3).
 //! * [`height_map`]: the metric `W²(I + ∇h∇hᵀ)` of a terrain (seed eq. 1.10).
 //! * [`descent`]: minimal paths along `−M⁻¹∇U`.
 
 pub mod descent;
 pub mod fast_marching;
+pub mod gradient;
 pub mod height_map;
 pub mod selling;
 pub mod stencil;
 pub mod structure_tensor;
 pub mod tensor;
 
+pub use gradient::{metric_distance_gradient, metric_gradient};
 pub use tensor::{
     anisotropy_ratio, components, eigen_tensor, energy_anisotropy, TensorError, TensorField,
 };
@@ -73,6 +77,7 @@ pub struct TensorOptions {
     /// Early stopping.
     pub stop: StopRules,
     /// Also return the rank at which each cell was frozen. Default: false.
+    /// The metric gradient ([`metric_gradient`]) of an order-2 solve needs it.
     pub record_order: bool,
 }
 

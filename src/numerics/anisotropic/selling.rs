@@ -24,12 +24,13 @@
 //! Lagrange–Gauss lattice basis reduction, the basis of FM-LBR (Mirebeau
 //! 2014): the stencil is the same family of offsets.
 
-/// Decomposition in 2D: `(ρ_i, e_i)` for the 3 offsets, `d = [d00, d01, d11]`.
-pub fn decompose2(d: [f64; 3]) -> [(f64, [i32; 2]); 3] {
-    let dot = |u: [i32; 2], v: [i32; 2]| -> f64 {
-        let (u0, u1, v0, v1) = (u[0] as f64, u[1] as f64, v[0] as f64, v[1] as f64);
-        d[0] * u0 * v0 + d[1] * (u0 * v1 + u1 * v0) + d[2] * u1 * v1
-    };
+/// The `D`-obtuse superbase of Selling's algorithm in 2D, from the
+/// canonical one, `d = [d00, d01, d11]`: the weight of offset slot `s` of
+/// [`decompose2`] is `ρ_s = −⟨b_i, D b_j⟩` with `(i, j) = PAIRS2[s]` (the
+/// derivative of the weights with respect to `D`, for fixed superbase, is
+/// `∂ρ_s/∂D = −(b_i b_jᵀ + b_j b_iᵀ)/2`).
+pub fn superbase2(d: [f64; 3]) -> [[i32; 2]; 3] {
+    let dot = |u: [i32; 2], v: [i32; 2]| dot2(d, u, v);
     let mut b = [[1, 0], [0, 1], [-1, -1]];
     // Each flip strictly lowers the energy; the cap only guards against a
     // non-terminating loop on degenerate input (validated tensors never hit it).
@@ -48,6 +49,22 @@ pub fn decompose2(d: [f64; 3]) -> [(f64, [i32; 2]); 3] {
             break;
         }
     }
+    b
+}
+
+/// The superbase pairs `(i, j)` of the offset slots of [`decompose2`]:
+/// slot `s` has `ρ_s = −⟨b_i, D b_j⟩` and `e_s = b_k^⊥`, `k` the third index.
+pub const PAIRS2: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+fn dot2(d: [f64; 3], u: [i32; 2], v: [i32; 2]) -> f64 {
+    let (u0, u1, v0, v1) = (u[0] as f64, u[1] as f64, v[0] as f64, v[1] as f64);
+    d[0] * u0 * v0 + d[1] * (u0 * v1 + u1 * v0) + d[2] * u1 * v1
+}
+
+/// Decomposition in 2D: `(ρ_i, e_i)` for the 3 offsets, `d = [d00, d01, d11]`.
+pub fn decompose2(d: [f64; 3]) -> [(f64, [i32; 2]); 3] {
+    let b = superbase2(d);
+    let dot = |u: [i32; 2], v: [i32; 2]| dot2(d, u, v);
     let perp = |v: [i32; 2]| [-v[1], v[0]];
     [
         ((-dot(b[0], b[1])).max(0.0), perp(b[2])),
@@ -56,31 +73,37 @@ pub fn decompose2(d: [f64; 3]) -> [(f64, [i32; 2]); 3] {
     ]
 }
 
-/// Decomposition in 3D: `(ρ_i, e_i)` for the 6 offsets,
-/// `d = [d00, d01, d02, d11, d12, d22]`.
-pub fn decompose3(d: [f64; 6]) -> [(f64, [i32; 3]); 6] {
+/// The superbase quadruples `(i, j, k, l)` of the offset slots of
+/// [`decompose3`]: slot `s` has `ρ_s = −⟨b_i, D b_j⟩` and `e_s = b_k × b_l`.
+pub const PAIRS3: [(usize, usize, usize, usize); 6] = [
+    (0, 1, 2, 3),
+    (0, 2, 1, 3),
+    (0, 3, 1, 2),
+    (1, 2, 0, 3),
+    (1, 3, 0, 2),
+    (2, 3, 0, 1),
+];
+
+fn dot3(d: [f64; 6], u: [i32; 3], v: [i32; 3]) -> f64 {
     let dm = [[d[0], d[1], d[2]], [d[1], d[3], d[4]], [d[2], d[4], d[5]]];
-    let dot = |u: [i32; 3], v: [i32; 3]| -> f64 {
-        let mut s = 0.0;
-        for a in 0..3 {
-            for c in 0..3 {
-                s += dm[a][c] * u[a] as f64 * v[c] as f64;
-            }
+    let mut s = 0.0;
+    for a in 0..3 {
+        for c in 0..3 {
+            s += dm[a][c] * u[a] as f64 * v[c] as f64;
         }
-        s
-    };
+    }
+    s
+}
+
+/// The `D`-obtuse superbase of Selling's algorithm in 3D,
+/// `d = [d00, d01, d02, d11, d12, d22]`: the weight of slot `s` of
+/// [`decompose3`] is `ρ_s = −⟨b_i, D b_j⟩`, `(i, j, _, _) = PAIRS3[s]`.
+pub fn superbase3(d: [f64; 6]) -> [[i32; 3]; 4] {
+    let dot = |u: [i32; 3], v: [i32; 3]| dot3(d, u, v);
     let mut b = [[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, -1, -1]];
-    const PAIRS: [(usize, usize, usize, usize); 6] = [
-        (0, 1, 2, 3),
-        (0, 2, 1, 3),
-        (0, 3, 1, 2),
-        (1, 2, 0, 3),
-        (1, 3, 0, 2),
-        (2, 3, 0, 1),
-    ];
     for _ in 0..400 {
         let mut flipped = false;
-        for &(i, j, k, l) in &PAIRS {
+        for &(i, j, k, l) in &PAIRS3 {
             if dot(b[i], b[j]) > 0.0 {
                 let bi = b[i];
                 b[i] = [-bi[0], -bi[1], -bi[2]];
@@ -95,6 +118,14 @@ pub fn decompose3(d: [f64; 6]) -> [(f64, [i32; 3]); 6] {
             break;
         }
     }
+    b
+}
+
+/// Decomposition in 3D: `(ρ_i, e_i)` for the 6 offsets,
+/// `d = [d00, d01, d02, d11, d12, d22]`.
+pub fn decompose3(d: [f64; 6]) -> [(f64, [i32; 3]); 6] {
+    let b = superbase3(d);
+    let dot = |u: [i32; 3], v: [i32; 3]| dot3(d, u, v);
     let cross = |u: [i32; 3], v: [i32; 3]| {
         [
             u[1] * v[2] - u[2] * v[1],
@@ -103,7 +134,7 @@ pub fn decompose3(d: [f64; 6]) -> [(f64, [i32; 3]); 6] {
         ]
     };
     let mut out = [(0.0, [0; 3]); 6];
-    for (slot, &(i, j, k, l)) in PAIRS.iter().enumerate() {
+    for (slot, &(i, j, k, l)) in PAIRS3.iter().enumerate() {
         out[slot] = ((-dot(b[i], b[j])).max(0.0), cross(b[k], b[l]));
     }
     out

@@ -115,6 +115,7 @@ use super::{
     Source,
 };
 use crate::numerics::control::Control;
+use crate::numerics::grid::Grid;
 
 /// Cells between two polls of the cancel flag.
 const CANCEL_EVERY: usize = 4096;
@@ -176,7 +177,7 @@ pub fn cost_gradient(
     // `[λ_x, ∂J/∂W_x]` side by side: the sweep visits the cells in front
     // order, scattered in memory, and one cache line then serves both.
     let mut acc = vec![[0.0f64; 2]; n];
-    for (i, w) in probe_weights(problem, &march.u, weights)? {
+    for (i, w) in probe_weights(&problem.grid, &march.u, weights)? {
         acc[i][0] += w;
     }
 
@@ -250,7 +251,7 @@ pub fn probe_values(
         .enumerate()
         .map(|(m, probe)| {
             let corners =
-                probe_weights(problem, &u, &[(probe.clone(), 1.0)]).map_err(|e| match e {
+                probe_weights(&problem.grid, &u, &[(probe.clone(), 1.0)]).map_err(|e| match e {
                     EikonalError::Option { field, reason } => EikonalError::Option {
                         field,
                         reason: reason.replacen("weights[0]", &format!("weights[{m}]"), 1),
@@ -748,14 +749,14 @@ fn solve_terms(t: &mut [Term], rhs: f64) -> Option<(f64, usize)> {
     None
 }
 
-/// The weights of the probes on cells: `(cell, w_m × corner weight)`.
-fn probe_weights(
-    problem: &EikonalProblem<'_>,
+/// The weights of the probes on cells: `(cell, w_m × corner weight)`
+/// (also the anisotropic adjoint's, [`crate::numerics::anisotropic::metric_gradient`]).
+pub(crate) fn probe_weights(
+    grid: &Grid,
     u: &[f64],
     weights: &[(Probe, f64)],
 ) -> Result<Vec<(usize, f64)>, EikonalError> {
     let mut out = Vec::with_capacity(weights.len());
-    let grid = &problem.grid;
     let shape = grid.shape3();
     for (index, (probe, weight)) in weights.iter().enumerate() {
         let err = |reason: String| EikonalError::Option {
@@ -821,7 +822,7 @@ fn probe_weights(
 /// The reached cells in decreasing `U` (decreasing freezing rank when the
 /// solve recorded it; otherwise sorted by `U`, ties by decreasing index):
 /// every cell comes before the upwind neighbours its value was computed from.
-fn backward_order(u: &[f64], output: &EikonalOutput) -> Vec<usize> {
+pub(crate) fn backward_order(u: &[f64], output: &EikonalOutput) -> Vec<usize> {
     if let Some(ranks) = &output.frozen_order {
         let mut order = vec![usize::MAX; output.frozen];
         for (i, &r) in ranks.iter().enumerate() {
@@ -897,7 +898,7 @@ mod tests {
     /// `J = Σ w_m U(y_m)` read from a solve, as the adjoint defines it.
     fn objective(problem: &EikonalProblem<'_>, u: &ArrayD<f64>, weights: &[(Probe, f64)]) -> f64 {
         let flat: Vec<f64> = u.iter().copied().collect();
-        probe_weights(problem, &flat, weights)
+        probe_weights(&problem.grid, &flat, weights)
             .unwrap()
             .iter()
             .map(|&(i, w)| w * flat[i])
