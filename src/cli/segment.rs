@@ -372,13 +372,23 @@ pub struct ShadingArgs {
     #[arg(long, value_name = "IMAGE")]
     pub image: PathBuf,
     /// Direction towards the light, l1 (axis 0), l2 (axis 1), l3 > 0 (towards the camera). Default: 0,0,1.
-    #[arg(long, value_name = "L1,L2,L3", value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "L1,L2,L3",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     pub light: Option<Vec<f64>>,
     /// Perspective camera of this focal length in pixels, the light at its optical centre (default: orthographic).
     #[arg(long, value_name = "F", allow_negative_numbers = true)]
     pub focal: Option<f64>,
     /// Perspective: principal point row,column in pixels (default: the image centre).
-    #[arg(long, value_name = "R,C", value_delimiter = ',', allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "R,C",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     pub principal_point: Option<Vec<f64>>,
     /// Perspective: no 1/r² falloff of the light (anchors are then needed).
     #[arg(long)]
@@ -447,7 +457,11 @@ pub fn run_shape_from_shading(args: &ShadingArgs) -> Result<(), SegmentCliError>
         mesh: args.mesh.is_some(),
     };
     let (out, secs) = execute(&request, &inputs, None)?;
-    let name = if args.focal.is_some() { "depth" } else { "height" };
+    let name = if args.focal.is_some() {
+        "depth"
+    } else {
+        "height"
+    };
     let Some(values) = array(&out, name) else {
         return Err(flag("geodex", "the operation returned no height"));
     };

@@ -252,7 +252,11 @@ impl GridShadingRequest {
                     ));
                 }
             }
-            if self.light.as_ref().is_some_and(|l| l[0] != 0.0 || l[1] != 0.0) {
+            if self
+                .light
+                .as_ref()
+                .is_some_and(|l| l[0] != 0.0 || l[1] != 0.0)
+            {
                 return Err(OpError::invalid(
                     "light",
                     "the perspective camera's light is at its optical centre: leave `light` out",
@@ -344,9 +348,7 @@ impl GridShadingRequest {
         let [_, n0, n1] = grid.shape3();
         let spec = match &self.anchors {
             Some(spec) => spec,
-            None if matches!(self.camera, CameraSpec::Perspective { .. }) => {
-                return Ok(Vec::new())
-            }
+            None if matches!(self.camera, CameraSpec::Perspective { .. }) => return Ok(Vec::new()),
             None => &AnchorSpec::default(),
         };
         let anchors: Vec<(usize, f64)> = match spec {
@@ -571,8 +573,7 @@ impl GridShadingRequest {
             max_iterations: self.max_iterations.unwrap_or(defaults.max_iterations),
         };
         let started = Instant::now();
-        let out =
-            shape_from_shading_general(&problem, options, control).map_err(shading_error)?;
+        let out = shape_from_shading_general(&problem, options, control).map_err(shading_error)?;
         let seconds = started.elapsed().as_secs_f64();
         let grid = &problem.grid;
         let (lo, hi) = finite_range(&out.height);
