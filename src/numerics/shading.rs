@@ -609,7 +609,7 @@ fn oblique(
         Direction::Down => -1.0,
     };
     let lx = |i: usize| l1 * (i / n1) as f64 * h0 + l2 * (i % n1) as f64 * h1;
-    let anchors = checked_anchors(problem, |z| Ok(z))?;
+    let anchors = checked_anchors(problem, Ok)?;
     let mut kind: Vec<Kind> = image
         .iter()
         .map(|&v| if v <= 0.0 { Kind::Wall } else { Kind::Free })
