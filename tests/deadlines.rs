@@ -179,6 +179,16 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"image": small_image, "examples": [[[1.0, 1.0], [500.0, 700.0], [998.0, 998.0]]]}),
         ),
         (
+            "grid.shape_from_shading",
+            "/v1/grid/shape-from-shading",
+            json!({"image": shaded, "camera": {"kind": "perspective", "focal": 3000.0}, "mesh": false}),
+        ),
+        (
+            "grid.shape_from_shading",
+            "/v1/grid/shape-from-shading",
+            json!({"image": shaded, "light": [0.2, 0.1, 1.0], "mesh": false}),
+        ),
+        (
             "grid.tensor_distance",
             "/v1/grid/tensor-distance",
             json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),

@@ -84,6 +84,8 @@ pub enum Command {
     Tomography(inverse::TomographyArgs),
     /// Fit an intensity metric so that its minimal paths follow example paths.
     FitMetric(inverse::FitMetricArgs),
+    /// Shape from shading: a Lambertian surface's height (or perspective depth) from one image, and its mesh.
+    ShapeFromShading(segment::ShadingArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -115,6 +117,9 @@ pub fn main() -> ExitCode {
         Some(Command::CostGradient(args)) => gradient::run(&args).map_err(Into::into),
         Some(Command::Tomography(args)) => inverse::run_tomography(&args).map_err(Into::into),
         Some(Command::FitMetric(args)) => inverse::run_fit_metric(&args).map_err(Into::into),
+        Some(Command::ShapeFromShading(args)) => {
+            segment::run_shape_from_shading(&args).map_err(Into::into)
+        }
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -13,6 +13,8 @@
 //! geodex plan --obstacles O.npy --radius 3 --start 10,5 --goal 50,55 --out path.json
 //! geodex sample --cost W.npy --count 500 --out U.npy --labels L.npy --samples S.json
 //! geodex mesh --image I.png --count 2000 --metric hessian --out M.ply --stats S.json
+//! geodex shape-from-shading --image I.png --light 0.3,0,1 --out Z.npy --mesh Z.ply
+//! geodex shape-from-shading --image I.png --focal 512 --out D.npy --mesh D.glb
 //! ```
 
 use std::collections::HashMap;
@@ -34,6 +36,7 @@ use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
 use crate::ops::grid_sample::GridSampleRequest;
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
+use crate::ops::grid_shading::{AnchorSpec, CameraSpec, DirectionSpec, GridShadingRequest};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
 use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
@@ -353,6 +356,143 @@ pub struct DomainMeshArgs {
     pub stats: Option<PathBuf>,
 }
 
+/// Where `geodex shape-from-shading` knows the height.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ShadingAnchorArg {
+    /// The image border.
+    Border,
+    /// The pixels at the albedo (the tops of convex objects).
+    Singular,
+}
+
+/// Flags of `geodex shape-from-shading`.
+#[derive(Debug, Clone, Args)]
+pub struct ShadingArgs {
+    /// The grey image (NPY, PNG, TIFF, ...): the brightness of a Lambertian surface.
+    #[arg(long, value_name = "IMAGE")]
+    pub image: PathBuf,
+    /// Direction towards the light, l1 (axis 0), l2 (axis 1), l3 > 0 (towards the camera). Default: 0,0,1.
+    #[arg(
+        long,
+        value_name = "L1,L2,L3",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub light: Option<Vec<f64>>,
+    /// Perspective camera of this focal length in pixels, the light at its optical centre (default: orthographic).
+    #[arg(long, value_name = "F", allow_negative_numbers = true)]
+    pub focal: Option<f64>,
+    /// Perspective: principal point row,column in pixels (default: the image centre).
+    #[arg(
+        long,
+        value_name = "R,C",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub principal_point: Option<Vec<f64>>,
+    /// Perspective: no 1/r² falloff of the light (anchors are then needed).
+    #[arg(long)]
+    pub no_attenuation: bool,
+    /// The brightness of a surface facing the light (default: the image's largest value).
+    #[arg(long, allow_negative_numbers = true)]
+    pub albedo: Option<f64>,
+    /// Where the height is known (default: the border, or none with --focal).
+    #[arg(long, value_enum)]
+    pub anchors: Option<ShadingAnchorArg>,
+    /// The anchors' height (a depth > 0 with --focal).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub anchor_height: f64,
+    /// The height falls away from the anchors (default: rises, falls for singular anchors).
+    #[arg(long)]
+    pub down: bool,
+    /// Sweeping solver: stop when an iteration changes no pixel by more than this.
+    #[arg(long, allow_negative_numbers = true)]
+    pub tolerance: Option<f64>,
+    /// Sweeping solver: the most iterations.
+    #[arg(long)]
+    pub max_iterations: Option<usize>,
+    /// Physical size of a pixel along each axis (orthographic).
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
+    /// Where to write the height (orthographic) or depth (perspective), f64 NPY.
+    #[arg(long, value_name = "Z.npy")]
+    pub out: PathBuf,
+    /// Where to write the surface mesh: `.ply`, `.obj`, `.json` or `.glb`.
+    #[arg(long, value_name = "MESH.ply")]
+    pub mesh: Option<PathBuf>,
+    /// Where to write the statistics (JSON).
+    #[arg(long, value_name = "S.json")]
+    pub stats: Option<PathBuf>,
+}
+
+/// `geodex shape-from-shading`.
+pub fn run_shape_from_shading(args: &ShadingArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let height = args.anchor_height;
+    let request = GridShadingRequest {
+        image: read("--image", &args.image, &mut inputs)?,
+        spacing: args.spacing.spacing.clone(),
+        albedo: args.albedo,
+        anchors: args.anchors.map(|a| match a {
+            ShadingAnchorArg::Border => AnchorSpec::Border { height },
+            ShadingAnchorArg::Singular => AnchorSpec::Singular {
+                tolerance: 1e-3,
+                height,
+            },
+        }),
+        direction: args.down.then_some(DirectionSpec::Down),
+        order: 2,
+        min_slope: None,
+        light: args.light.clone(),
+        camera: match args.focal {
+            None => CameraSpec::Orthographic,
+            Some(focal) => CameraSpec::Perspective {
+                focal,
+                principal_point: args.principal_point.clone(),
+                attenuation: !args.no_attenuation,
+            },
+        },
+        tolerance: args.tolerance,
+        max_iterations: args.max_iterations,
+        mesh: args.mesh.is_some(),
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    let name = if args.focal.is_some() {
+        "depth"
+    } else {
+        "height"
+    };
+    let Some(values) = array(&out, name) else {
+        return Err(flag("geodex", "the operation returned no height"));
+    };
+    write("--out", &args.out, values)?;
+    if let Some(p) = &args.mesh {
+        let Some(mesh) = &out.mesh else {
+            return Err(flag("--mesh", "no pixel quad is reached: no mesh to write"));
+        };
+        let bytes = mesh_write::encode_by_extension(&mesh.mesh.mesh, &[], p)
+            .map_err(|e| flag("--mesh", e))?;
+        std::fs::write(p, bytes)
+            .map_err(|e| flag("--mesh", format!("cannot write '{}': {e}", p.display())))?;
+    }
+    if let Some(p) = &args.stats {
+        write_json("--stats", p, &out.document)?;
+    }
+    let stats = &out.document["stats"];
+    println!(
+        "geodex: wrote {} ({} {}..{}, {} unreached, {} iterations, {}, {:.3} s)",
+        args.out.display(),
+        name,
+        stats[format!("min_{name}")],
+        stats[format!("max_{name}")],
+        stats["unreached"],
+        stats["iterations"],
+        stats["stop"].as_str().unwrap_or("fast marching"),
+        secs
+    );
+    Ok(())
+}
+
 pub(super) fn read(
     name: &str,
     path: &Path,
@@ -417,6 +557,9 @@ fn flag_of(field: &str) -> String {
         "sources" | "receivers" | "times" => "--data".into(),
         "examples" => "--examples".into(),
         "design" => "--value".into(),
+        "camera" => "--focal".into(),
+        "light" => "--light".into(),
+        "anchors" => "--anchors".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
@@ -861,5 +1004,7 @@ mod tests {
         assert_eq!(flag_of("cost.dataset"), "--cost");
         assert_eq!(flag_of("radius"), "--radius");
         assert_eq!(flag_of("min_boundary_fraction"), "--min-boundary-fraction");
+        assert_eq!(flag_of("camera.focal"), "--focal");
+        assert_eq!(flag_of("light"), "--light");
     }
 }

@@ -1,7 +1,11 @@
-//! `grid.shape_from_shading`: the height map of a Lambertian surface under a
-//! frontal light, recovered from one image by fast marching (see
-//! [`crate::numerics::shading`]).
+//! `grid.shape_from_shading`: the height map of a Lambertian surface
+//! recovered from one image (see [`crate::numerics::shading`]): under a
+//! frontal light and an orthographic camera by fast marching, under an
+//! oblique light or with a perspective camera (light at the optical centre,
+//! `1/r²` falloff) by Lax–Friedrichs fast sweeping; the surface also as a
+//! mesh.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -9,21 +13,29 @@ use utoipa::ToSchema;
 
 use super::spec::defaults::default_order;
 use super::spec::grid::{fetch, grid_of, mask_of, shaped};
-use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use super::spec::mesh::MeshInput;
+use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray, OutputMesh};
+use crate::io::mesh::report_of;
 use crate::io::ArrayData;
+use crate::numerics::mesh::{Topology, TriMesh};
 use crate::numerics::shading::{
-    border_cells, shape_from_shading, singular_cells, Direction, ShadingError, ShadingOptions,
-    ShadingProblem,
+    border_cells, shape_from_shading, shape_from_shading_general, singular_cells, surface_mesh,
+    Camera, Direction, GeneralShadingProblem, ShadingError, ShadingOptions, ShadingProblem,
+    SweepOptions, SweepStop,
 };
 use crate::numerics::{Control, Order};
 
 /// Request of `grid.shape_from_shading` (`POST /v1/grid/shape-from-shading`).
 ///
-/// The image is the brightness of a Lambertian surface lit from the camera's
-/// direction and seen by an orthographic camera; the answer is its height
-/// `z` (in the units of `spacing`), the solution of
+/// The image is the brightness of a Lambertian surface. By default it is
+/// lit from the camera's direction and seen by an orthographic camera; the
+/// answer is its height `z` (in the units of `spacing`), the solution of
 /// `|∇z| = sqrt(albedo² / I² - 1)` with the heights of the `anchors`
-/// prescribed.
+/// prescribed (fast marching). With an oblique `light` the image equation
+/// `I = albedo (l3 - l·∇z) / sqrt(1 + |∇z|²)` is solved for `w = L·P` by
+/// Lax–Friedrichs fast sweeping; with a `perspective` camera (light at the
+/// optical centre, `I = albedo cos α / r²`) the answer is the `depth`, with
+/// no anchors needed (Prados and Faugeras 2005).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({"image": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e45", "anchors": {"kind": "border", "height": 0.0}}))]
@@ -40,23 +52,78 @@ pub struct GridShadingRequest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(exclusive_minimum = 0.0)]
     pub albedo: Option<f64>,
-    /// Where the height is known. Default: the image border at height 0.
-    #[serde(default)]
-    pub anchors: AnchorSpec,
+    /// Where the height is known. Default: the image border at height 0
+    /// (orthographic), none (perspective: the heights are then depths `> 0`;
+    /// without attenuation anchors are needed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anchors: Option<AnchorSpec>,
     /// Whether the height rises (`up`: the anchors are the lowest points) or
     /// falls (`down`: the anchors are the tops) away from the anchors: the
     /// concave/convex ambiguity of shape from shading. Default: `down` for
     /// `singular` anchors, `up` otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direction: Option<DirectionSpec>,
-    /// Order of the fast-marching scheme, 1 or 2. Default: 2.
+    /// Order of the fast-marching scheme, 1 or 2 (frontal light and
+    /// orthographic camera; the sweeping solver is first order). Default: 2.
     #[serde(default = "default_order")]
     pub order: u8,
+    /// Direction towards the light `[l1, l2, l3]` (`l1` along axis 0, `l2`
+    /// along axis 1, `l3 > 0` towards the camera), normalised. Default:
+    /// `[0, 0, 1]`, frontal. Orthographic camera only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 3, max_items = 3)]
+    pub light: Option<Vec<f64>>,
+    /// The camera. Default: orthographic.
+    #[serde(default)]
+    pub camera: CameraSpec,
+    /// Sweeping solver (oblique light, perspective camera): stop when an
+    /// iteration changes no pixel by more than this (in `w`, length units,
+    /// or in `ln depth`). Default: 1e-7.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
+    pub tolerance: Option<f64>,
+    /// Sweeping solver: the most iterations (four sweeps each). Default: 5000.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 1)]
+    pub max_iterations: Option<usize>,
+    /// Also return the surface as a mesh dataset (`mesh`): a vertex per
+    /// reached pixel, two triangles per pixel quad whose corners are all
+    /// reached. Default: true.
+    #[serde(default = "default_true")]
+    pub mesh: bool,
     /// The smallest slope used (where the image is at the albedo the slope is
     /// 0, which the solver cannot march). Default: 1e-9.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(exclusive_minimum = 0.0)]
     pub min_slope: Option<f64>,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+/// The camera of `grid.shape_from_shading`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, ToSchema)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CameraSpec {
+    /// Parallel projection: pixel `(a, b)` sees `(a h0, b h1, z)`.
+    #[default]
+    Orthographic,
+    /// A pinhole camera with the light at its optical centre. Works in
+    /// pixels (`spacing` must be left out); the answer is the depth `Z`,
+    /// the surface point of pixel `x` being `Z ((x - c) / focal, 1)`.
+    Perspective {
+        /// Focal length in pixels, `> 0`.
+        focal: f64,
+        /// Principal point `[row, column]` in pixels. Default: the image centre.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[schema(min_items = 2, max_items = 2)]
+        principal_point: Option<Vec<f64>>,
+        /// Whether the light falls off as `1/r²` (then the depth is fixed
+        /// by the image alone, its unit by `albedo`). Default: true.
+        #[serde(default = "default_true")]
+        attenuation: bool,
+    },
 }
 
 /// The cells whose height is prescribed.
@@ -143,7 +210,79 @@ impl GridShadingRequest {
                 }
             }
         }
-        match &self.anchors {
+        if let Some(t) = self.tolerance {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(OpError::invalid(
+                    "tolerance",
+                    format!("{t} must be finite and > 0"),
+                ));
+            }
+        }
+        if self.max_iterations == Some(0) {
+            return Err(OpError::invalid("max_iterations", "must be >= 1"));
+        }
+        if let Some(l) = &self.light {
+            let norm = l.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if l.len() != 3 || !norm.is_finite() || l[2] <= 0.0 {
+                return Err(OpError::invalid(
+                    "light",
+                    format!(
+                        "{l:?}: give 3 finite numbers [l1, l2, l3] with l3 > 0 (the light must be in front of the surface)"
+                    ),
+                ));
+            }
+        }
+        if let CameraSpec::Perspective {
+            focal,
+            principal_point,
+            ..
+        } = &self.camera
+        {
+            if !(focal.is_finite() && *focal > 0.0) {
+                return Err(OpError::invalid(
+                    "camera.focal",
+                    format!("{focal} must be finite and > 0 (pixels)"),
+                ));
+            }
+            if let Some(c) = principal_point {
+                if c.len() != 2 || c.iter().any(|v| !v.is_finite()) {
+                    return Err(OpError::invalid(
+                        "camera.principal_point",
+                        format!("{c:?}: give 2 finite numbers [row, column] in pixels"),
+                    ));
+                }
+            }
+            if self
+                .light
+                .as_ref()
+                .is_some_and(|l| l[0] != 0.0 || l[1] != 0.0)
+            {
+                return Err(OpError::invalid(
+                    "light",
+                    "the perspective camera's light is at its optical centre: leave `light` out",
+                ));
+            }
+            if self.spacing.is_some() {
+                return Err(OpError::invalid(
+                    "spacing",
+                    "the perspective camera works in pixels (focal in pixels): leave `spacing` out",
+                ));
+            }
+            if let Some(
+                AnchorSpec::Border { height }
+                | AnchorSpec::Mask { height, .. }
+                | AnchorSpec::Singular { height, .. },
+            ) = &self.anchors
+            {
+                if *height <= 0.0 {
+                    return Err(OpError::invalid(
+                        "anchors.height",
+                        format!("{height}: with the perspective camera anchors are depths, > 0"),
+                    ));
+                }
+            }
+        }
+        match self.anchors.as_ref().unwrap_or(&AnchorSpec::default()) {
             AnchorSpec::Border { height }
             | AnchorSpec::Mask { height, .. }
             | AnchorSpec::Singular { height, .. }
@@ -207,7 +346,12 @@ impl GridShadingRequest {
         albedo: f64,
     ) -> Result<Vec<(usize, f64)>, OpError> {
         let [_, n0, n1] = grid.shape3();
-        let anchors: Vec<(usize, f64)> = match &self.anchors {
+        let spec = match &self.anchors {
+            Some(spec) => spec,
+            None if matches!(self.camera, CameraSpec::Perspective { .. }) => return Ok(Vec::new()),
+            None => &AnchorSpec::default(),
+        };
+        let anchors: Vec<(usize, f64)> = match spec {
             AnchorSpec::Border { height } => border_cells(grid)
                 .into_iter()
                 .map(|i| (i, *height))
@@ -240,7 +384,7 @@ impl GridShadingRequest {
             }
         };
         if anchors.is_empty() {
-            let way_out = match self.anchors {
+            let way_out = match spec {
                 AnchorSpec::Singular { .. } => {
                     "no pixel reaches the albedo: raise `anchors.tolerance`, lower `albedo`, or give `border`, `mask` or `cells` anchors"
                 }
@@ -261,15 +405,17 @@ impl Operation for GridShadingRequest {
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
         let mut ids = vec![("image".to_string(), self.image.clone())];
-        if let AnchorSpec::Mask { dataset, .. } = &self.anchors {
+        if let Some(AnchorSpec::Mask { dataset, .. }) = &self.anchors {
             ids.push(("anchors.dataset".into(), dataset.clone()));
         }
         ids
     }
 
-    /// Arrays: `height` (f64, `±inf` behind a shadow). Document: `{"stats":
-    /// {"cells", "anchors", "flat", "unreached", "albedo", "min_height",
-    /// "max_height", "seconds"}}`.
+    /// Arrays: `height` (f64, `±inf` behind a shadow; `depth` with the
+    /// perspective camera). Mesh: `mesh` (unless `mesh: false`). Document:
+    /// `{"stats": {"cells", "anchors", "flat", "unreached", "albedo",
+    /// "min_height", "max_height", "seconds"}}`, and with the sweeping
+    /// solver `model`, `light`, `iterations`, `change`, `stop`.
     fn run(
         &self,
         inputs: &dyn Inputs,
@@ -313,9 +459,48 @@ impl Operation for GridShadingRequest {
         let anchors = self.anchor_cells(inputs, &grid, &image, albedo)?;
         let direction = match (self.direction, &self.anchors) {
             (Some(DirectionSpec::Up), _) => Direction::Up,
-            (Some(DirectionSpec::Down), _) | (None, AnchorSpec::Singular { .. }) => Direction::Down,
+            (Some(DirectionSpec::Down), _) | (None, Some(AnchorSpec::Singular { .. })) => {
+                Direction::Down
+            }
             (None, _) => Direction::Up,
         };
+        let light = match &self.light {
+            Some(l) => {
+                let norm = l.iter().map(|v| v * v).sum::<f64>().sqrt();
+                [l[0] / norm, l[1] / norm, l[2] / norm]
+            }
+            None => [0.0, 0.0, 1.0],
+        };
+        let [_, n0, n1] = grid.shape3();
+        let camera = match &self.camera {
+            CameraSpec::Orthographic => Camera::Orthographic,
+            CameraSpec::Perspective {
+                focal,
+                principal_point,
+                attenuation,
+            } => Camera::Perspective {
+                focal: *focal,
+                principal_point: match principal_point {
+                    Some(c) => [c[0], c[1]],
+                    None => [(n0 as f64 - 1.0) / 2.0, (n1 as f64 - 1.0) / 2.0],
+                },
+                attenuation: *attenuation,
+            },
+        };
+        if camera != Camera::Orthographic || light != [0.0, 0.0, 1.0] {
+            return self.run_sweeping(
+                GeneralShadingProblem {
+                    grid,
+                    image: &image,
+                    albedo,
+                    anchors,
+                    direction,
+                    light,
+                    camera,
+                },
+                control,
+            );
+        }
         let problem = ShadingProblem {
             grid: grid.clone(),
             image: &image,
@@ -333,14 +518,9 @@ impl Operation for GridShadingRequest {
         let out = shape_from_shading(&problem, ShadingOptions { order }, control)
             .map_err(shading_error)?;
         let seconds = started.elapsed().as_secs_f64();
-        let (lo, hi) = out
-            .height
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v), hi.max(v))
-            });
-        Ok(OpOutput::new(
+        let (lo, hi) = finite_range(&out.height);
+        let mesh = self.mesh_of(&grid, &out.height, &Camera::Orthographic)?;
+        let mut output = OpOutput::new(
             vec![OutputArray {
                 name: "height".into(),
                 array: ArrayData::F64(shaped(&grid, out.height)?),
@@ -352,11 +532,111 @@ impl Operation for GridShadingRequest {
                 "flat": out.flat,
                 "unreached": out.unreached,
                 "albedo": albedo,
-                "min_height": if lo.is_finite() { Some(lo) } else { None },
-                "max_height": if hi.is_finite() { Some(hi) } else { None },
+                "min_height": lo,
+                "max_height": hi,
                 "seconds": seconds,
             }}),
-        ))
+        );
+        output.mesh = mesh;
+        Ok(output)
+    }
+}
+
+/// The smallest and largest finite values, if any.
+fn finite_range(v: &[f64]) -> (Option<f64>, Option<f64>) {
+    let (lo, hi) = v
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo.is_finite() {
+        (Some(lo), Some(hi))
+    } else {
+        (None, None)
+    }
+}
+
+impl GridShadingRequest {
+    /// Oblique light or perspective camera: the sweeping solver. Arrays:
+    /// `height` (orthographic) or `depth` (perspective); stats as the
+    /// frontal case's plus `model`, `iterations`, `change`, `stop`
+    /// (`converged` or `iteration_cap`).
+    fn run_sweeping(
+        &self,
+        problem: GeneralShadingProblem<'_>,
+        control: &Control<'_>,
+    ) -> Result<OpOutput, OpError> {
+        let defaults = SweepOptions::default();
+        let options = SweepOptions {
+            tolerance: self.tolerance.unwrap_or(defaults.tolerance),
+            max_iterations: self.max_iterations.unwrap_or(defaults.max_iterations),
+        };
+        let started = Instant::now();
+        let out = shape_from_shading_general(&problem, options, control).map_err(shading_error)?;
+        let seconds = started.elapsed().as_secs_f64();
+        let grid = &problem.grid;
+        let (lo, hi) = finite_range(&out.height);
+        let mesh = self.mesh_of(grid, &out.height, &problem.camera)?;
+        let (name, model) = match problem.camera {
+            Camera::Orthographic => ("height", "orthographic_oblique"),
+            Camera::Perspective { .. } => ("depth", "perspective"),
+        };
+        let mut output = OpOutput::new(
+            vec![OutputArray {
+                name: name.into(),
+                array: ArrayData::F64(shaped(grid, out.height)?),
+                spacing: Some(grid.spacing().to_vec()),
+            }],
+            serde_json::json!({"stats": {
+                "model": model,
+                "light": problem.light,
+                "cells": grid.len(),
+                "anchors": problem.anchors.len(),
+                "unreached": out.unreached,
+                "albedo": problem.albedo,
+                format!("min_{name}"): lo,
+                format!("max_{name}"): hi,
+                "iterations": out.iterations,
+                "change": out.change,
+                "stop": match out.stop {
+                    SweepStop::Converged => "converged",
+                    SweepStop::IterationCap => "iteration_cap",
+                },
+                "seconds": seconds,
+            }}),
+        );
+        output.mesh = mesh;
+        Ok(output)
+    }
+
+    /// The surface mesh, if asked for and not empty.
+    fn mesh_of(
+        &self,
+        grid: &crate::numerics::Grid,
+        height: &[f64],
+        camera: &Camera,
+    ) -> Result<Option<OutputMesh>, OpError> {
+        if !self.mesh {
+            return Ok(None);
+        }
+        let (points, triangles) = surface_mesh(grid, height, camera);
+        if triangles.is_empty() {
+            return Ok(None);
+        }
+        let tri = TriMesh::new(points, triangles)
+            .map_err(|e| OpError::invalid("mesh", format!("{e}: ask for `mesh: false`")))?;
+        let topology = Topology::new(&tri);
+        let report = report_of(&tri, &topology);
+        Ok(Some(OutputMesh {
+            name: "mesh".into(),
+            mesh: Arc::new(MeshInput {
+                mesh: tri,
+                topology,
+                report,
+            }),
+            vertex_properties: vec![],
+        }))
     }
 }
 
@@ -369,6 +649,9 @@ fn shading_error(e: ShadingError) -> OpError {
         }
         ShadingError::Albedo(_) => OpError::invalid("albedo", e.to_string()),
         ShadingError::MinSlope(_) => OpError::invalid("min_slope", e.to_string()),
+        ShadingError::Light(_) => OpError::invalid("light", e.to_string()),
+        ShadingError::Camera(_) => OpError::invalid("camera", e.to_string()),
+        ShadingError::Option(_) => OpError::invalid("tolerance", e.to_string()),
         ShadingError::NotTwoD(_)
         | ShadingError::Length { .. }
         | ShadingError::Brightness { .. } => OpError::invalid("image", e.to_string()),
