@@ -713,7 +713,7 @@ fn cost_gradient_writes_the_library_adjoint_and_names_bad_targets() {
     let solved = solve(&problem, &options, &Control::new()).unwrap();
     let points = [vec![5.0, 20.0], vec![25.0, 20.0], vec![12.5, 22.25]];
     let probes: Vec<Probe> = points.iter().map(|p| Probe::Point(p.clone())).collect();
-    let u = geodex::numerics::eikonal::probe_values(&problem, &solved, &probes).unwrap();
+    let u = geodex::numerics::eikonal::probe_values(&problem.grid, &solved, &probes).unwrap();
     let weights: Vec<(Probe, f64)> = probes
         .into_iter()
         .zip([0.5 * (u[0] - 10.0), u[1] - 40.0, u[2] - 3.0])

@@ -221,7 +221,8 @@ pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
         }
     }
     let request = GridCostGradientRequest {
-        cost,
+        cost: Some(cost),
+        metric: None,
         spacing: args.spacing.spacing.clone(),
         obstacles,
         sources,

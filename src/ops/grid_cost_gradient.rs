@@ -14,21 +14,33 @@
 //! sensitivity of that path's length to the cost of every cell (the path's
 //! own move does not enter at first order). The misfit is the travel-time
 //! objective of tomography: `T_m` the observed times.
+//!
+//! With a tensor `metric` instead of a `cost` the forward solve is the
+//! anisotropic fast marching and the answer is `∂J/∂m` for every component
+//! `m` of the metric at every cell
+//! ([`crate::numerics::anisotropic::metric_gradient`]).
 
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use ndarray::ArrayD;
+
 use super::spec::cost::{resolve_cost, CostSpec, InterpretationSpec};
 use super::spec::defaults::{default_order, default_true};
 use super::spec::errors::eikonal_error;
-use super::spec::grid::{check_point, check_spacing, shaped};
-use super::spec::scheme::{resolve_sources, source_dataset_ids, stop_name, SourceSpec};
+use super::spec::grid::{check_point, check_spacing};
+use super::spec::scheme::{
+    metric_dataset_ids, resolve_sources, source_dataset_ids, stop_name, SourceSpec,
+};
+use super::spec::tensor::{resolve_tensor, tensor_solve_error, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
+use crate::numerics::anisotropic::{self, metric_gradient, TensorOptions, TensorSolveError};
 use crate::numerics::eikonal::{
-    cost_gradient, probe_values, EikonalError, EikonalOptions, EikonalProblem, Method, Order, Probe,
+    cost_gradient, probe_values, EikonalError, EikonalOptions, EikonalProblem, Method, Order,
+    Probe, StopReason,
 };
 use crate::numerics::{self, Control};
 
@@ -47,8 +59,17 @@ pub struct GridCostGradientRequest {
     /// shape, or a cost designed from an image. The gradient is taken with
     /// respect to the values as given: the cost `W`, or the speed `F = 1/W`
     /// with `interpretation: speed` (`∂J/∂F = −W² ∂J/∂W`); with a `design`,
-    /// with respect to the designed cost.
-    pub cost: CostSpec,
+    /// with respect to the designed cost. Give exactly one of `cost` and
+    /// `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field `M`, as in `grid.distance`) instead
+    /// of `cost`: the gradient is then taken with respect to each component
+    /// of `M` at every cell (`[m00, m01, m11]` in 2D, `[m00, m01, m02, m11,
+    /// m12, m22]` in 3D; an off-diagonal component moves `M_ab` and `M_ba`
+    /// together), an array of the grid's shape plus one axis of 3 or 6.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell along each axis (axis 0 first). Default: the
     /// cost dataset's, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -114,7 +135,22 @@ pub enum ObjectiveSpec {
 
 impl GridCostGradientRequest {
     fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.cost.validate(limits)?;
+        match (&self.cost, &self.metric) {
+            (Some(cost), None) => cost.validate(limits)?,
+            (None, Some(metric)) => metric.validate("metric", limits)?,
+            (Some(_), Some(_)) => {
+                return Err(OpError::invalid(
+                    "metric",
+                    "give either an isotropic `cost` or a tensor `metric`, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(OpError::invalid(
+                    "cost",
+                    "give the metric: an isotropic `cost` or a tensor `metric`",
+                ))
+            }
+        }
         check_spacing(&self.spacing)?;
         if self.sources.is_empty() {
             return Err(OpError::invalid(
@@ -217,10 +253,7 @@ impl Operation for GridCostGradientRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = Vec::new();
-        if let Some(id) = &self.cost.dataset {
-            ids.push(("cost.dataset".to_string(), id.clone()));
-        }
+        let mut ids = metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref());
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".into(), id.clone()));
         }
@@ -240,99 +273,28 @@ impl Operation for GridCostGradientRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         self.check(limits)?;
-        let resolved = resolve_cost(
-            &self.cost,
-            self.spacing.as_deref(),
-            self.obstacles.as_deref(),
-            inputs,
-            limits,
-            control,
-        )?;
-        let cost = resolved.isotropic()?;
-        let grid = resolved.grid.clone();
-        for (m, t) in self.targets.iter().enumerate() {
-            check_point(&t.point, &format!("targets[{m}].point"), Some(grid.ndim()))?;
-        }
-        let sources = resolve_sources(&self.sources, &grid, &cost, inputs, control)?;
-        let problem = EikonalProblem {
-            grid: grid.clone(),
-            cost,
-            sources,
+        let solved = match (&self.cost, &self.metric) {
+            (Some(cost), _) => self.solve_isotropic(cost, inputs, limits, control)?,
+            (None, Some(metric)) => self.solve_tensor(metric, inputs, limits, control)?,
+            (None, None) => return Err(OpError::invalid("cost", "missing")),
         };
-        let options = self.options();
-        let started = Instant::now();
-        let out = numerics::solve(&problem, &options, control).map_err(eikonal_error)?;
-        let solve_seconds = started.elapsed().as_secs_f64();
-
-        let probes: Vec<Probe> = self
-            .targets
-            .iter()
-            .map(|t| Probe::Point(t.point.clone()))
-            .collect();
-        let values = probe_values(&problem, &out, &probes).map_err(target_error)?;
-        let residuals: Vec<Option<f64>> = self
-            .targets
-            .iter()
-            .zip(&values)
-            .map(|(t, u)| t.observed.map(|o| u - o))
-            .collect();
-        let (objective, weights): (f64, Vec<(Probe, f64)>) = match self.objective {
-            ObjectiveSpec::Sum => (
-                self.targets
-                    .iter()
-                    .zip(&values)
-                    .map(|(t, u)| t.weight * u)
-                    .sum(),
-                probes
-                    .into_iter()
-                    .zip(&self.targets)
-                    .map(|(p, t)| (p, t.weight))
-                    .collect(),
-            ),
-            ObjectiveSpec::Misfit => {
-                let r: Vec<f64> = residuals.iter().map(|r| r.unwrap_or(0.0)).collect();
-                (
-                    0.5 * self
-                        .targets
-                        .iter()
-                        .zip(&r)
-                        .map(|(t, r)| t.weight * r * r)
-                        .sum::<f64>(),
-                    probes
-                        .into_iter()
-                        .zip(self.targets.iter().zip(&r))
-                        .map(|(p, (t, r))| (p, t.weight * r))
-                        .collect(),
-                )
-            }
-        };
-        let started = Instant::now();
-        let mut gradient =
-            cost_gradient(&problem, &options, &out, &weights, control).map_err(target_error)?;
-        let speed = self.cost.interpretation == InterpretationSpec::Speed;
-        if speed {
-            // `W = 1/F`: `∂J/∂F = −W² ∂J/∂W` (0 on walls, where `W = +inf`).
-            for (i, g) in gradient.iter_mut().enumerate() {
-                let w = problem.cost.at(i);
-                *g = if w.is_finite() { -w * w * *g } else { 0.0 };
-            }
-        }
-        let gradient_seconds = started.elapsed().as_secs_f64();
-
-        let spacing = Some(resolved.spacing.clone());
+        let residuals = self.residuals(&solved.values);
+        let spacing = Some(solved.spacing);
+        let cells = solved.distance.len();
         let mut arrays = vec![OutputArray {
             name: "gradient".into(),
-            array: ArrayData::F64(gradient),
+            array: ArrayData::F64(solved.gradient),
             spacing: spacing.clone(),
         }];
         if self.distance {
             arrays.push(OutputArray {
                 name: "distance".into(),
-                array: ArrayData::F64(shaped(&grid, out.distance.iter().copied().collect())?),
+                array: ArrayData::F64(solved.distance),
                 spacing,
             });
         }
-        let targets: Vec<serde_json::Value> = values
+        let targets: Vec<serde_json::Value> = solved
+            .values
             .iter()
             .zip(&residuals)
             .map(|(u, r)| match r {
@@ -347,19 +309,199 @@ impl Operation for GridCostGradientRequest {
         Ok(OpOutput::new(
             arrays,
             serde_json::json!({
-                "objective": {"kind": kind, "value": objective},
+                "objective": {"kind": kind, "value": self.objective_value(&solved.values)},
                 "targets": targets,
-                "with_respect_to": if speed { "speed" } else { "cost" },
+                "with_respect_to": solved.with_respect_to,
                 "stats": {
-                    "cells": grid.len(),
-                    "frozen": out.frozen,
-                    "stop": stop_name(out.stop),
+                    "cells": cells,
+                    "frozen": solved.frozen,
+                    "stop": stop_name(solved.stop),
                     "order": self.order,
-                    "solve_seconds": solve_seconds,
-                    "gradient_seconds": gradient_seconds,
+                    "solve_seconds": solved.solve_seconds,
+                    "gradient_seconds": solved.gradient_seconds,
                 },
             }),
         ))
+    }
+}
+
+/// A forward solve and its adjoint, isotropic or tensor.
+struct Solved {
+    gradient: ArrayD<f64>,
+    distance: ArrayD<f64>,
+    values: Vec<f64>,
+    spacing: Vec<f64>,
+    frozen: usize,
+    stop: StopReason,
+    with_respect_to: &'static str,
+    solve_seconds: f64,
+    gradient_seconds: f64,
+}
+
+impl GridCostGradientRequest {
+    fn probes(&self) -> Vec<Probe> {
+        self.targets
+            .iter()
+            .map(|t| Probe::Point(t.point.clone()))
+            .collect()
+    }
+
+    fn residuals(&self, values: &[f64]) -> Vec<Option<f64>> {
+        self.targets
+            .iter()
+            .zip(values)
+            .map(|(t, u)| t.observed.map(|o| u - o))
+            .collect()
+    }
+
+    /// `J` at the target values `U(y_m)`.
+    fn objective_value(&self, values: &[f64]) -> f64 {
+        let terms = self.targets.iter().zip(values);
+        match self.objective {
+            ObjectiveSpec::Sum => terms.map(|(t, u)| t.weight * u).sum(),
+            ObjectiveSpec::Misfit => {
+                0.5 * terms
+                    .map(|(t, u)| {
+                        let r = u - t.observed.unwrap_or(*u);
+                        t.weight * r * r
+                    })
+                    .sum::<f64>()
+            }
+        }
+    }
+
+    /// The adjoint's weights `∂J/∂U(y_m)`: `w_m`, or `w_m (U(y_m) − T_m)`.
+    fn adjoint_weights(&self, values: &[f64]) -> Vec<(Probe, f64)> {
+        self.probes()
+            .into_iter()
+            .zip(self.targets.iter().zip(values))
+            .map(|(p, (t, u))| match self.objective {
+                ObjectiveSpec::Sum => (p, t.weight),
+                ObjectiveSpec::Misfit => (p, t.weight * (u - t.observed.unwrap_or(*u))),
+            })
+            .collect()
+    }
+
+    fn check_targets(&self, ndim: usize) -> Result<(), OpError> {
+        for (m, t) in self.targets.iter().enumerate() {
+            check_point(&t.point, &format!("targets[{m}].point"), Some(ndim))?;
+        }
+        Ok(())
+    }
+
+    fn solve_isotropic(
+        &self,
+        cost: &CostSpec,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<Solved, OpError> {
+        let resolved = resolve_cost(
+            cost,
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+            inputs,
+            limits,
+            control,
+        )?;
+        let cost_field = resolved.isotropic()?;
+        let grid = resolved.grid.clone();
+        self.check_targets(grid.ndim())?;
+        let sources = resolve_sources(&self.sources, &grid, &cost_field, inputs, control)?;
+        let problem = EikonalProblem {
+            grid: grid.clone(),
+            cost: cost_field,
+            sources,
+        };
+        let options = self.options();
+        let started = Instant::now();
+        let out = numerics::solve(&problem, &options, control).map_err(eikonal_error)?;
+        let solve_seconds = started.elapsed().as_secs_f64();
+
+        let values = probe_values(&grid, &out, &self.probes()).map_err(target_error)?;
+        let started = Instant::now();
+        let weights = self.adjoint_weights(&values);
+        let mut gradient =
+            cost_gradient(&problem, &options, &out, &weights, control).map_err(target_error)?;
+        let speed = cost.interpretation == InterpretationSpec::Speed;
+        if speed {
+            // `W = 1/F`: `∂J/∂F = −W² ∂J/∂W` (0 on walls, where `W = +inf`).
+            for (i, g) in gradient.iter_mut().enumerate() {
+                let w = problem.cost.at(i);
+                *g = if w.is_finite() { -w * w * *g } else { 0.0 };
+            }
+        }
+        Ok(Solved {
+            gradient,
+            distance: out.distance,
+            values,
+            spacing: resolved.spacing.clone(),
+            frozen: out.frozen,
+            stop: out.stop,
+            with_respect_to: if speed { "speed" } else { "cost" },
+            solve_seconds,
+            gradient_seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+
+    fn solve_tensor(
+        &self,
+        metric: &TensorSpec,
+        inputs: &dyn Inputs,
+        limits: &OpLimits,
+        control: &Control<'_>,
+    ) -> Result<Solved, OpError> {
+        let resolved = resolve_tensor(
+            metric,
+            "metric",
+            self.spacing.as_deref(),
+            self.obstacles.as_deref(),
+            inputs,
+            limits,
+            control,
+        )?;
+        self.check_targets(resolved.grid.ndim())?;
+        // Masks are cells at 0; walls are the tensor's own.
+        let unit = numerics::IsotropicCost::constant(1.0)
+            .map_err(|e| OpError::invalid("metric", e.to_string()))?;
+        let sources = resolve_sources(&self.sources, &resolved.grid, &unit, inputs, control)?;
+        let (problem, spacing) = resolved.into_problem(sources);
+        let mut options = TensorOptions::DEFAULT
+            .with_order(if self.order == 1 {
+                Order::First
+            } else {
+                Order::Second
+            })
+            .with_factoring(false);
+        options.record_order = true;
+        let started = Instant::now();
+        let out = anisotropic::solve(&problem, &options, control).map_err(tensor_error)?;
+        let solve_seconds = started.elapsed().as_secs_f64();
+        let values =
+            probe_values(&problem.grid, &out.output, &self.probes()).map_err(target_error)?;
+        let started = Instant::now();
+        let weights = self.adjoint_weights(&values);
+        let gradient =
+            metric_gradient(&problem, &options, &out, &weights, control).map_err(tensor_error)?;
+        Ok(Solved {
+            gradient,
+            distance: out.output.distance,
+            values,
+            spacing,
+            frozen: out.output.frozen,
+            stop: out.output.stop,
+            with_respect_to: "metric",
+            solve_seconds,
+            gradient_seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// A tensor solve's or adjoint's error, naming the field at fault.
+fn tensor_error(e: TensorSolveError) -> OpError {
+    match e {
+        TensorSolveError::Solve(e) => target_error(e),
+        other => tensor_solve_error(other, "metric"),
     }
 }
 

@@ -267,3 +267,79 @@ async fn cost_gradient_refusals_name_the_field() {
         assert_eq!(v["field"], field, "{body}: {v}");
     }
 }
+
+#[tokio::test]
+async fn metric_gradient_matches_finite_differences_and_euler_identity() {
+    let app = spawn(|_| {}).await;
+    let (n0, n1) = (21, 19);
+    // A smooth SPD field [m00, m01, m11] and a symmetric direction δ.
+    let field = |eps: f64| {
+        ArrayD::from_shape_fn(ndarray::IxDyn(&[n0, n1, 3]), |ix| {
+            let (a, b) = (ix[0] as f64 / n0 as f64, ix[1] as f64 / n1 as f64);
+            let m = [
+                2.0 + (3.0 * a).sin(),
+                0.6 * (2.0 * b).cos(),
+                1.5 + 0.5 * (4.0 * a * b).cos(),
+            ];
+            let d = [(2.0 * b).sin() + 0.3, 0.4 * (a - b), (3.0 * a).cos()];
+            m[ix[2]] + eps * d[ix[2]]
+        })
+    };
+    let body = |id: &str, order: u8| {
+        json!({
+            "metric": {"kind": "components", "dataset": id},
+            "sources": [{"point": [2.0, 3.0]}],
+            "targets": [{"point": [18.0, 15.0]}, {"point": [6.5, 16.25], "weight": 0.5}],
+            "order": order,
+            "distance": false
+        })
+    };
+    let base = field(0.0);
+    let id = app.upload(&ArrayData::F64(base.clone())).await;
+    for order in [1u8, 2] {
+        let v = ok(&app, &body(&id, order)).await;
+        assert_eq!(v["with_respect_to"], "metric");
+        assert_eq!(v["gradient"]["shape"], json!([n0, n1, 3]));
+        let g = f64s(&app, &v["gradient"]).await;
+        let j = v["objective"]["value"].as_f64().expect("value");
+        // U is homogeneous of degree 1/2 in M.
+        let euler: f64 = g.iter().zip(base.iter()).map(|(g, m)| g * m).sum();
+        assert!(
+            (euler - 0.5 * j).abs() < 1e-9 * j,
+            "order {order}: {euler} vs {j}/2"
+        );
+        let eps = 1e-5;
+        let mut js = Vec::new();
+        for e in [eps, -eps] {
+            let id = app.upload(&ArrayData::F64(field(e))).await;
+            js.push(
+                ok(&app, &body(&id, order)).await["objective"]["value"]
+                    .as_f64()
+                    .expect("value"),
+            );
+        }
+        let fd = (js[0] - js[1]) / (2.0 * eps);
+        let delta = &field(1.0) - &base;
+        let directional: f64 = g.iter().zip(delta.iter()).map(|(g, d)| g * d).sum();
+        let rel = (directional - fd).abs() / fd.abs();
+        assert!(
+            rel < 1e-4,
+            "order {order}: adjoint {directional}, FD {fd} (rel {rel:.2e})"
+        );
+    }
+    // Both metrics, or neither: named.
+    for (body, field) in [
+        (
+            json!({"cost": {"constant": 1.0, "shape": [5, 5]}, "metric": {"kind": "components", "dataset": id}, "sources": [{"point": [0.0, 0.0]}], "targets": [{"point": [1.0, 1.0]}]}),
+            "metric",
+        ),
+        (
+            json!({"sources": [{"point": [0.0, 0.0]}], "targets": [{"point": [1.0, 1.0]}]}),
+            "cost",
+        ),
+    ] {
+        let res = post(&app, &body).await;
+        let v = problem(res, 422).await;
+        assert_eq!(v["field"], field, "{body}: {v}");
+    }
+}

@@ -239,9 +239,10 @@ pub fn distance_gradient(
 /// probe: the cell's value, or the multilinear interpolation of the `2^d`
 /// cells around a point. Refused like the probes of [`cost_gradient`]
 /// (outside the grid, a corner not reached), with the probe's index in
-/// `weights[m]` of the reason.
+/// `weights[m]` of the reason. Works for any solve on `grid` (the
+/// anisotropic one's [`EikonalOutput`] too).
 pub fn probe_values(
-    problem: &EikonalProblem<'_>,
+    grid: &Grid,
     output: &EikonalOutput,
     probes: &[Probe],
 ) -> Result<Vec<f64>, EikonalError> {
@@ -251,7 +252,7 @@ pub fn probe_values(
         .enumerate()
         .map(|(m, probe)| {
             let corners =
-                probe_weights(&problem.grid, &u, &[(probe.clone(), 1.0)]).map_err(|e| match e {
+                probe_weights(grid, &u, &[(probe.clone(), 1.0)]).map_err(|e| match e {
                     EikonalError::Option { field, reason } => EikonalError::Option {
                         field,
                         reason: reason.replacen("weights[0]", &format!("weights[{m}]"), 1),
