@@ -76,6 +76,8 @@ pub enum Command {
     Mesh(segment::MeshArgs),
     /// Mesh a planar domain (a mask or GeoJSON polygons with holes): boundary first, angles >= 25 deg.
     MeshDomain(segment::DomainMeshArgs),
+    /// Group key points into contours by minimal paths (perceptual grouping).
+    Group(segment::GroupArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -104,6 +106,7 @@ pub fn main() -> ExitCode {
         Some(Command::Sample(args)) => segment::run_sample(&args).map_err(Into::into),
         Some(Command::Mesh(args)) => segment::run_mesh(&args).map_err(Into::into),
         Some(Command::MeshDomain(args)) => segment::run_domain_mesh(&args).map_err(Into::into),
+        Some(Command::Group(args)) => segment::run_group(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

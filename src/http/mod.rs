@@ -87,6 +87,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::segment::mesh))
         .routes(routes!(routes::segment::domain_mesh))
         .routes(routes!(routes::shading::shape_from_shading))
+        .routes(routes!(routes::group::group))
         .routes(routes!(routes::metric::metric))
         .routes(routes!(routes::paths::paths))
         .routes(routes!(routes::tensor::tensor_distance))

@@ -26,6 +26,7 @@
 pub mod domain_mesh;
 pub mod grid_distance;
 pub mod grid_edt;
+pub mod grid_group;
 pub mod grid_mesh;
 pub mod grid_metric;
 pub mod grid_offset;

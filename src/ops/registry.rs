@@ -60,6 +60,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::grid_mesh::GridMeshRequest>(),
     entry::<super::domain_mesh::DomainMeshRequest>(),
     entry::<super::grid_shading::GridShadingRequest>(),
+    entry::<super::grid_group::GridGroupRequest>(),
     entry::<super::grid_tensor_distance::GridTensorDistanceRequest>(),
     entry::<super::grid_tensor_metric::GridTensorMetricRequest>(),
     entry::<super::mesh_distance::MeshDistanceRequest>(),

@@ -5,6 +5,7 @@
 //! * [`grid`]: `POST /v1/grid/distance`.
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
+//! * [`group`]: `POST /v1/grid/group`.
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
@@ -17,6 +18,7 @@
 pub mod datasets;
 pub mod docs;
 pub mod grid;
+pub mod group;
 pub mod health;
 pub mod jobs;
 pub mod mesh;
