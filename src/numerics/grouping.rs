@@ -264,7 +264,9 @@ pub struct GroupingOutput {
     pub isolated: Vec<usize>,
     /// The typical link cost `τ` (median of the key points' cheapest link).
     pub typical_cost: f64,
-    /// Kept links whose path could not be traced (dropped from the graph).
+    /// Kept links whose minimal path could not be traced by descent on one
+    /// side: that half of `path` is the straight segment from the key point
+    /// to the saddle's cell (the link stays: its cost is the saddle's).
     pub path_failures: usize,
     /// With orientations: the interpolation width `σ` used.
     pub spread: Option<f64>,
@@ -491,7 +493,7 @@ pub fn group(
         find_saddles(grid, &u, &labels, unit_norm, control)?
             .into_iter()
             .collect();
-    saddles.sort_by(|a, b| a.0.cmp(&b.0));
+    saddles.sort_by_key(|a| a.0);
     let mut links: Vec<Link> = saddles
         .iter()
         .map(|&(pair, s)| Link {
@@ -507,7 +509,7 @@ pub fn group(
     let typical_cost = select(&mut links, n, &options.selection);
     control.report(0.6);
     // Paths of the kept links: per key point, descents on U restricted to its cell.
-    let mut halves: HashMap<(usize, usize), (Vec<[f64; 2]>, f64)> = HashMap::new();
+    let mut halves: HashMap<(usize, usize), Half> = HashMap::new();
     let mut path_failures = 0usize;
     let mut failed = vec![false; links.len()];
     // The cells of each Voronoi cell (counting sort by label), so that the
@@ -552,27 +554,67 @@ pub fn group(
             masked[i] = u[i];
         }
         let set = SourceSet::new(grid, &sources[p..=p]).map_err(path_solve_error)?;
+        let all = SourceSet::new(grid, &sources).map_err(path_solve_error)?;
         for (l, link) in links.iter().enumerate() {
-            if !link.kept || !link.pair.contains(&p) || failed[l] {
+            if !link.kept || !link.pair.contains(&p) {
                 continue;
             }
             let edge = saddles[l].1;
-            let start = if edge.label_a == p { edge.a } else { edge.b };
-            let traced = match &metric {
-                Metric::Iso(cost) => {
-                    descend(grid, &masked, *cost, &Isotropic, &set, start, options)
-                }
-                Metric::Tensor(field) => {
-                    let r = Riemannian::new(grid, field);
-                    descend(grid, &masked, &r, &r, &set, start, options)
-                }
+            let (start, other) = if edge.label_a == p {
+                (edge.a, edge.b)
+            } else {
+                (edge.b, edge.a)
             };
-            match traced {
-                Some(half) => {
-                    halves.insert((l, p), half);
+            // Starts: the boundary cell on `p`'s side, then up to 3 cells
+            // further inside along the edge's axis. From each, the descent on
+            // U restricted to the cell; failing that (the discrete descent
+            // can stall against the boundary where a cell's value was set
+            // from a neighbouring cell's front), on the whole map, accepted
+            // only if it reaches `p`. The cells skipped are joined straight.
+            let step = [start[0] - other[0], start[1] - other[1]];
+            let mut traced = None;
+            for m in 0..4 {
+                let x = [start[0] + m as f64 * step[0], start[1] + m as f64 * step[1]];
+                if !(0..2).all(|k| x[k] >= 0.0 && x[k] <= (grid.shape()[k] - 1) as f64)
+                    || labels[nearest(grid, x)] != p as i32
+                {
+                    break;
                 }
-                None => failed[l] = true,
+                let half = match &metric {
+                    Metric::Iso(cost) => {
+                        descend(grid, &masked, *cost, &Isotropic, &set, x, options).or_else(|| {
+                            descend_to(grid, &u, *cost, &Isotropic, &all, x, p, options)
+                        })
+                    }
+                    Metric::Tensor(field) => {
+                        let r = Riemannian::new(grid, field);
+                        descend(grid, &masked, &r, &r, &set, x, options)
+                            .or_else(|| descend_to(grid, &u, &r, &r, &all, x, p, options))
+                    }
+                };
+                if let Some((mut points, mut length)) = half {
+                    for back in (0..m).rev() {
+                        let y = [
+                            start[0] + back as f64 * step[0],
+                            start[1] + back as f64 * step[1],
+                        ];
+                        let c = nearest(grid, y);
+                        let k = usize::from(step[1] != 0.0);
+                        length += unit_norm(c, k) * grid.spacing()[k];
+                        points.push(y);
+                    }
+                    traced = Some((points, length));
+                    break;
+                }
             }
+            // Last resort: the straight segment from `p` to the boundary
+            // cell, of length `U` there (counted in `path_failures`).
+            let half = traced.unwrap_or_else(|| {
+                failed[l] = true;
+                let kp = problem.key_points[p];
+                (vec![kp, start], u[nearest(grid, start)])
+            });
+            halves.insert((l, p), half);
         }
         for &i in own {
             masked[i] = f64::INFINITY;
@@ -583,10 +625,12 @@ pub fn group(
             continue;
         }
         let [i, j] = link.pair;
-        let (Some(hi), Some(hj)) = (halves.get(&(l, i)), halves.get(&(l, j))) else {
-            failed[l] = true;
-            link.kept = false;
+        if failed[l] {
             path_failures += 1;
+        }
+        let (Some(hi), Some(hj)) = (halves.get(&(l, i)), halves.get(&(l, j))) else {
+            link.kept = false;
+            path_failures += usize::from(!failed[l]);
             continue;
         };
         let mut path = hi.0.clone();
@@ -629,6 +673,32 @@ fn descend<C: CellCost + ?Sized, D: DescentDirection + ?Sized>(
     let path = map.descend(set, &start, dir, &options.descent).ok()?;
     let points = path.points.iter().map(|p| [p[1], p[2]]).collect();
     Some((points, path.geodesic_length))
+}
+
+/// One side of a link's path: from the key point to the boundary cell, and its length.
+type Half = (Vec<[f64; 2]>, f64);
+
+/// [`descend`] on a map of several sources, accepted only if the path
+/// reaches the source `target`.
+#[allow(clippy::too_many_arguments)]
+fn descend_to<C: CellCost + ?Sized, D: DescentDirection + ?Sized>(
+    grid: &Grid,
+    u: &[f64],
+    cost: &C,
+    dir: &D,
+    set: &SourceSet,
+    start: [f64; 2],
+    target: usize,
+    options: &GroupingOptions,
+) -> Option<(Vec<[f64; 2]>, f64)> {
+    let map = DistanceMap::new(grid, u, cost).ok()?;
+    let path = map.descend(set, &start, dir, &options.descent).ok()?;
+    (path.source == target).then(|| {
+        (
+            path.points.iter().map(|p| [p[1], p[2]]).collect(),
+            path.geodesic_length,
+        )
+    })
 }
 
 /// The saddle of one pair: the best edge `a → b` (cells, index
