@@ -5,6 +5,7 @@ mod common;
 mod connections;
 mod errors;
 mod flow;
+mod group;
 mod level_set;
 mod load;
 mod mesh;
