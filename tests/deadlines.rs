@@ -189,6 +189,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"image": shaded, "light": [0.2, 0.1, 1.0], "mesh": false}),
         ),
         (
+            "grid.group",
+            "/v1/grid/group",
+            json!({"cost": big, "key_points": (0..400).map(|k| [7.0 * (k / 20) as f64 + 3.0, 7.0 * (k % 20) as f64 + 3.0]).collect::<Vec<_>>()}),
+        ),
+        (
             "grid.tensor_distance",
             "/v1/grid/tensor-distance",
             json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),

@@ -109,6 +109,8 @@ const CONTROL_ENTRY_POINTS: &[(&str, &str)] = &[
     ("src/numerics/skeleton/medial_axis.rs", "medial_axis"),
     ("src/numerics/segmentation.rs", "offset_euclidean"),
     ("src/numerics/planning.rs", "plan"),
+    ("src/numerics/grouping.rs", "group"),
+    ("src/numerics/grouping.rs", "oriented_metric"),
     ("src/numerics/mesh/solve.rs", "mesh_distance"),
     ("src/numerics/mesh/sampling.rs", "farthest_point_sampling"),
 ];

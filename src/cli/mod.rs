@@ -86,6 +86,8 @@ pub enum Command {
     FitMetric(inverse::FitMetricArgs),
     /// Shape from shading: a Lambertian surface's height (or perspective depth) from one image, and its mesh.
     ShapeFromShading(segment::ShadingArgs),
+    /// Group key points into contours by minimal paths (perceptual grouping).
+    Group(segment::GroupArgs),
     /// Extract minimal paths from NPY / image files (batch use).
     Path(path::PathArgs),
 
@@ -120,6 +122,7 @@ pub fn main() -> ExitCode {
         Some(Command::ShapeFromShading(args)) => {
             segment::run_shape_from_shading(&args).map_err(Into::into)
         }
+        Some(Command::Group(args)) => segment::run_group(&args).map_err(Into::into),
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),

@@ -31,6 +31,7 @@ use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
 use crate::ops::domain_mesh::{DomainGeometry, DomainMeshRequest};
 use crate::ops::grid_edt::{EdtMode, GridEdtRequest};
+use crate::ops::grid_group::GridGroupRequest;
 use crate::ops::grid_mesh::{GridMeshRequest, MeshMetricSpec};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
@@ -255,6 +256,58 @@ pub struct SampleArgs {
     /// Where to write the samples and statistics (JSON).
     #[arg(long, value_name = "S.json")]
     pub samples: Option<PathBuf>,
+}
+
+/// Flags of `geodex group`.
+#[derive(Debug, Clone, Args)]
+pub struct GroupArgs {
+    /// The cost W (2D NPY or image), as in `geodex distance`.
+    #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
+    pub cost: Option<PathBuf>,
+    /// Grid shape for a unit cost, instead of --cost.
+    #[arg(long, value_name = "N,M", value_delimiter = ',')]
+    pub shape: Option<Vec<usize>>,
+    /// The key points: a JSON array of [row, column] pairs, or an object
+    /// {"key_points": [...], "orientations": [...]} (tangent angles in
+    /// radians, from axis 0 towards axis 1) for the anisotropic grouping.
+    #[arg(long, value_name = "K.json")]
+    pub key_points: PathBuf,
+    /// With orientations: how many times cheaper along the tangent.
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
+    pub anisotropy: f64,
+    /// Each key point keeps at most this many links (mutually).
+    #[arg(long, default_value_t = 2)]
+    pub max_links: usize,
+    /// A link costs at most this times the cheapest link of each end.
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
+    pub ratio: f64,
+    /// A link costs at most this times the typical link (0: no bound).
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+    pub relative: f64,
+    /// A link costs at most this (units of the integrated cost).
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_cost: Option<f64>,
+    /// Contours with fewer key points are dropped.
+    #[arg(long, default_value_t = 2)]
+    pub min_points: usize,
+    /// Obstacle mask (walls).
+    #[arg(long, value_name = "O.npy")]
+    pub obstacles: Option<PathBuf>,
+    /// Physical size of a cell along each axis.
+    #[command(flatten)]
+    pub spacing: SpacingFlag,
+    /// Where to write the links, contours and statistics (JSON).
+    #[arg(long, value_name = "G.json")]
+    pub out: PathBuf,
+    /// Where to write the contours as GeoJSON.
+    #[arg(long, value_name = "C.geojson")]
+    pub geojson: Option<PathBuf>,
+    /// Where to write the Voronoi labels (int32 NPY).
+    #[arg(long, value_name = "L.npy")]
+    pub labels: Option<PathBuf>,
+    /// Where to write the distance to the nearest key point (f64 NPY).
+    #[arg(long, value_name = "U.npy")]
+    pub distance: Option<PathBuf>,
 }
 
 /// The metric of `geodex mesh`.
@@ -560,6 +613,7 @@ fn flag_of(field: &str) -> String {
         "camera" => "--focal".into(),
         "light" => "--light".into(),
         "anchors" => "--anchors".into(),
+        "key_points" | "orientations" => "--key-points".into(),
         "min_boundary_length" => "--min-boundary-length".into(),
         "min_boundary_fraction" => "--min-boundary-fraction".into(),
         other => other.replace('_', "-"),
@@ -850,6 +904,82 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
         args.out.display(),
         out.document["stats"]["samples"],
         out.document["stats"]["covering_radius"],
+        secs
+    );
+    Ok(())
+}
+
+/// `geodex group`.
+pub fn run_group(args: &GroupArgs) -> Result<(), SegmentCliError> {
+    let mut inputs = HashMap::new();
+    let text = std::fs::read(&args.key_points).map_err(|e| {
+        flag(
+            "--key-points",
+            format!("cannot read '{}': {e}", args.key_points.display()),
+        )
+    })?;
+    let value: serde_json::Value = serde_json::from_slice(&text).map_err(|e| {
+        flag(
+            "--key-points",
+            format!("'{}': {e}", args.key_points.display()),
+        )
+    })?;
+    let (points, orientations) = match &value {
+        serde_json::Value::Object(o) => (
+            o.get("key_points").cloned().unwrap_or_default(),
+            o.get("orientations").cloned(),
+        ),
+        other => (other.clone(), None),
+    };
+    let key_points: Vec<Vec<f64>> = serde_json::from_value(points).map_err(|e| {
+        flag(
+            "--key-points",
+            format!("expected an array of [row, column] pairs: {e}"),
+        )
+    })?;
+    let orientations: Option<Vec<f64>> = match orientations {
+        None | Some(serde_json::Value::Null) => None,
+        Some(v) => Some(serde_json::from_value(v).map_err(|e| {
+            flag(
+                "--key-points",
+                format!("`orientations` must be an array of angles: {e}"),
+            )
+        })?),
+    };
+    let request = GridGroupRequest {
+        cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
+        spacing: args.spacing.spacing.clone(),
+        obstacles: match &args.obstacles {
+            Some(p) => Some(read("--obstacles", p, &mut inputs)?),
+            None => None,
+        },
+        key_points,
+        orientations,
+        anisotropy: args.anisotropy,
+        spread: None,
+        max_links: args.max_links,
+        ratio: args.ratio,
+        relative: (args.relative != 0.0).then_some(args.relative),
+        max_cost: args.max_cost,
+        min_points: args.min_points,
+        order: 2,
+    };
+    let (out, secs) = execute(&request, &inputs, None)?;
+    write_json("--out", &args.out, &out.document)?;
+    if let Some(p) = &args.geojson {
+        write_json("--geojson", p, &out.document["geojson"])?;
+    }
+    save(&out, "labels", "--labels", &args.labels)?;
+    save(&out, "distance", "--distance", &args.distance)?;
+    let stats = &out.document["stats"];
+    println!(
+        "geodex: wrote {} ({} contours, {} closed, {} isolated key points, {} of {} links kept, {:.3} s)",
+        args.out.display(),
+        stats["contours"],
+        stats["closed"],
+        stats["isolated"],
+        stats["kept"],
+        stats["candidates"],
         secs
     );
     Ok(())

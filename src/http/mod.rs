@@ -90,6 +90,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::gradient::cost_gradient))
         .routes(routes!(routes::inverse::tomography))
         .routes(routes!(routes::inverse::fit_metric))
+        .routes(routes!(routes::group::group))
         .routes(routes!(routes::metric::metric))
         .routes(routes!(routes::paths::paths))
         .routes(routes!(routes::tensor::tensor_distance))

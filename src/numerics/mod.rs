@@ -45,6 +45,7 @@ pub mod eikonal;
 pub mod exact;
 pub mod filters;
 pub mod grid;
+pub mod grouping;
 pub mod heap;
 pub mod inverse;
 pub mod mesh;

@@ -30,6 +30,7 @@ pub mod grid_cost_gradient;
 pub mod grid_distance;
 pub mod grid_edt;
 pub mod grid_fit_metric;
+pub mod grid_group;
 pub mod grid_mesh;
 pub mod grid_metric;
 pub mod grid_offset;

@@ -63,6 +63,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::grid_cost_gradient::GridCostGradientRequest>(),
     entry::<super::grid_tomography::GridTomographyRequest>(),
     entry::<super::grid_fit_metric::GridFitMetricRequest>(),
+    entry::<super::grid_group::GridGroupRequest>(),
     entry::<super::grid_tensor_distance::GridTensorDistanceRequest>(),
     entry::<super::grid_tensor_metric::GridTensorMetricRequest>(),
     entry::<super::mesh_distance::MeshDistanceRequest>(),

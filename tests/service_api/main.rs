@@ -6,6 +6,7 @@ mod connections;
 mod errors;
 mod flow;
 mod gradient;
+mod group;
 mod inverse;
 mod level_set;
 mod load;

@@ -5,6 +5,7 @@
 //! * [`grid`]: `POST /v1/grid/distance`.
 //! * [`segment`]: `POST /v1/grid/{edt,segment,skeleton,offset,plan,sample}`.
 //! * [`metric`]: `POST /v1/grid/metric`.
+//! * [`group`]: `POST /v1/grid/group`.
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
 //! * [`gradient`]: `POST /v1/grid/cost-gradient`.
 //! * [`paths`]: `POST /v1/grid/paths`.
@@ -20,6 +21,7 @@ pub mod datasets;
 pub mod docs;
 pub mod gradient;
 pub mod grid;
+pub mod group;
 pub mod health;
 pub mod inverse;
 pub mod jobs;
