@@ -741,3 +741,75 @@ fn cost_gradient_writes_the_library_adjoint_and_names_bad_targets() {
     ]);
     assert!(line.contains("--target 2"), "{line}");
 }
+
+#[test]
+fn tomography_reads_the_api_shaped_survey_and_names_bad_points() {
+    let dir = TempDir::new().unwrap();
+    // Slowness 2 everywhere: the best constant is close to 2.
+    let sources: [[f64; 2]; 2] = [[0.0, 2.0], [0.0, 13.0]];
+    let receivers: [[f64; 2]; 3] = [[15.0, 1.0], [15.0, 8.0], [15.0, 14.0]];
+    let times: Vec<Vec<f64>> = sources
+        .iter()
+        .map(|s| {
+            receivers
+                .iter()
+                .map(|r| 2.0 * ((r[0] - s[0]).powi(2) + (r[1] - s[1]).powi(2)).sqrt())
+                .collect()
+        })
+        .collect();
+    let points = |p: &[[f64; 2]]| {
+        p.iter()
+            .map(|p| serde_json::json!({"point": p}))
+            .collect::<Vec<_>>()
+    };
+    let data = path(&dir, "survey.json");
+    std::fs::write(
+        &data,
+        serde_json::json!({"sources": points(&sources), "receivers": points(&receivers), "times": times})
+            .to_string(),
+    )
+    .unwrap();
+    let out = path(&dir, "w.npy");
+    let report = path(&dir, "r.json");
+    let o = geodex(&[
+        "tomography",
+        "--data",
+        s(&data),
+        "--shape",
+        "16,16",
+        "--max-iterations",
+        "3",
+        "--out",
+        s(&out),
+        "--report",
+        s(&report),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let w: ArrayD<f64> = read_npy(&out).unwrap();
+    assert_eq!(w.shape(), &[16, 16]);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let c = doc["constant_cost"].as_f64().unwrap();
+    assert!((c - 2.0).abs() < 0.15, "{doc}");
+
+    // A receiver outside the grid names the flag of the file it came from.
+    std::fs::write(
+        &data,
+        serde_json::json!({"sources": points(&sources), "receivers": points(&[[15.0, 1.0], [15.0, 16.5], [15.0, 14.0]]), "times": times})
+            .to_string(),
+    )
+    .unwrap();
+    let line = one_error_line(&[
+        "tomography",
+        "--data",
+        s(&data),
+        "--shape",
+        "16,16",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        line.contains("--data") && line.contains("outside the grid"),
+        "{line}"
+    );
+}

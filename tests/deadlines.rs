@@ -169,8 +169,8 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
         (
             "grid.tomography",
             "/v1/grid/tomography",
-            json!({"shape": [2000, 2000], "sources": [[0.0, 0.0], [0.0, 1999.0]],
-                   "receivers": [[1999.0, 0.0], [1999.0, 1999.0]],
+            json!({"shape": [2000, 2000], "sources": [{"point": [0.0, 0.0]}, {"point": [0.0, 1999.0]}],
+                   "receivers": [{"point": [1999.0, 0.0]}, {"point": [1999.0, 1999.0]}],
                    "times": [[2000.0, 2800.0], [2800.0, 2000.0]]}),
         ),
         (

@@ -9,13 +9,13 @@ use clap::Args;
 use super::segment::{execute, flag, read, write, write_json, SegmentCliError};
 use super::SpacingFlag;
 use crate::ops::grid_fit_metric::GridFitMetricRequest;
-use crate::ops::grid_tomography::GridTomographyRequest;
+use crate::ops::grid_tomography::{GridTomographyRequest, SurveyPoint};
 use crate::ops::spec::design::{DesignSpec, IntensitySpec};
 
 /// Flags of `geodex tomography`.
 #[derive(Debug, Clone, Args)]
 pub struct TomographyArgs {
-    /// The data (JSON): `{"sources": [[i, j], ...], "receivers": [[i, j], ...],
+    /// The data (JSON): `{"sources": [{"point": [i, j]}, ...], "receivers": [{"point": [i, j]}, ...],
     /// "times": [[t, ...], ...]}`, index coordinates, one row of times per source.
     #[arg(long, value_name = "DATA.json")]
     pub data: PathBuf,
@@ -89,8 +89,8 @@ pub struct FitMetricArgs {
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Data {
-    sources: Vec<Vec<f64>>,
-    receivers: Vec<Vec<f64>>,
+    sources: Vec<SurveyPoint>,
+    receivers: Vec<SurveyPoint>,
     times: Vec<Vec<f64>>,
 }
 

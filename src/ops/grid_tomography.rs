@@ -32,7 +32,7 @@ pub const MAX_ITERATIONS: usize = 1000;
 /// the misfit never increases).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
-#[schema(example = json!({"shape": [64, 64], "sources": [[0.0, 0.0], [0.0, 63.0]], "receivers": [[63.0, 0.0], [63.0, 63.0]], "times": [[63.0, 89.1], [89.1, 63.0]], "alpha": 0.5}))]
+#[schema(example = json!({"shape": [64, 64], "sources": [{"point": [0.0, 0.0]}, {"point": [0.0, 63.0]}], "receivers": [{"point": [63.0, 0.0]}, {"point": [63.0, 63.0]}], "times": [[63.0, 89.1], [89.1, 63.0]], "alpha": 0.5}))]
 pub struct GridTomographyRequest {
     /// Grid shape (2 or 3 axes).
     #[schema(min_items = 2, max_items = 3)]
@@ -43,10 +43,10 @@ pub struct GridTomographyRequest {
     pub spacing: Option<Vec<f64>>,
     /// Source points (index coordinates, axis 0 first), inside the grid.
     #[schema(min_items = 1)]
-    pub sources: Vec<Vec<f64>>,
+    pub sources: Vec<SurveyPoint>,
     /// Receiver points (index coordinates, axis 0 first), inside the grid.
     #[schema(min_items = 1)]
-    pub receivers: Vec<Vec<f64>>,
+    pub receivers: Vec<SurveyPoint>,
     /// The measured travel times: one row per source, one value per
     /// receiver, finite and `>= 0` (physical units: `∫ W ds`).
     pub times: Vec<Vec<f64>>,
@@ -73,6 +73,16 @@ pub struct GridTomographyRequest {
     /// Order of the fast marching, 1 or 2. Default: 1.
     #[serde(default = "default_order_one")]
     pub order: u8,
+}
+
+/// A source or receiver of a survey: `{"point": [...]}`, the shape of a
+/// point source elsewhere in the API.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SurveyPoint {
+    /// Index coordinates (axis 0 first), inside the grid, possibly between cells.
+    #[schema(min_items = 2, max_items = 3)]
+    pub point: Vec<f64>,
 }
 
 fn default_iterations() -> usize {
@@ -109,7 +119,8 @@ impl GridTomographyRequest {
                 });
             }
             for (k, p) in points.iter().enumerate() {
-                let name = format!("{field}[{k}]");
+                let p = &p.point;
+                let name = format!("{field}[{k}].point");
                 check_point(p, &name, Some(ndim))?;
                 if let Some(a) =
                     (0..ndim).find(|&a| !(0.0..=(self.shape[a] - 1) as f64).contains(&p[a]))
@@ -229,10 +240,12 @@ impl Operation for GridTomographyRequest {
             .unwrap_or_else(|| vec![1.0; self.shape.len()]);
         let grid = Grid::new(&self.shape, &spacing).map_err(|e| grid_error(e, &self.shape))?;
         let times: Vec<f64> = self.times.iter().flatten().copied().collect();
+        let sources: Vec<Vec<f64>> = self.sources.iter().map(|s| s.point.clone()).collect();
+        let receivers: Vec<Vec<f64>> = self.receivers.iter().map(|r| r.point.clone()).collect();
         let problem = TomographyProblem {
             grid: grid.clone(),
-            sources: &self.sources,
-            receivers: &self.receivers,
+            sources: &sources,
+            receivers: &receivers,
             times: &times,
         };
         let options = TomographyOptions {

@@ -33,7 +33,8 @@ fn small_tomography() -> Value {
                 .collect()
         })
         .collect();
-    json!({"shape": [24, 24], "sources": sources, "receivers": receivers, "times": times,
+    let points = |p: &[[f64; 2]]| p.iter().map(|p| json!({"point": p})).collect::<Vec<_>>();
+    json!({"shape": [24, 24], "sources": points(&sources), "receivers": points(&receivers), "times": times,
            "alpha": 0.1, "max_iterations": 5})
 }
 
@@ -116,16 +117,16 @@ async fn tomography_refusals_name_the_field() {
         (
             with(
                 "receivers",
-                json!([[23.0, 1.0], [23.0, 24.5], [0.0, 0.0], [1.0, 1.0]]),
+                json!([{"point": [23.0, 1.0]}, {"point": [23.0, 24.5]}, {"point": [0.0, 0.0]}, {"point": [1.0, 1.0]}]),
             ),
-            "receivers[1][1]",
+            "receivers[1].point[1]",
         ),
         (
             with(
                 "sources",
-                json!([[0.0, 2.0], [0.0], [0.0, 3.0], [0.0, 4.0]]),
+                json!([{"point": [0.0, 2.0]}, {"point": [0.0]}, {"point": [0.0, 3.0]}, {"point": [0.0, 4.0]}]),
             ),
-            "sources[1]",
+            "sources[1].point",
         ),
         (with("sources", json!([])), "sources"),
         (with("shape", json!([24])), "shape"),
