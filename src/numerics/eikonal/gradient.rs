@@ -470,14 +470,19 @@ impl<'a> Replay<'a> {
             }
         }
         let nbs = &nbs[..2 * axes.len()];
-        let last = self.ranks.as_ref().map(|r| {
+        // Order 1 freezes in non-decreasing `U`, so "smaller `U`" is exact
+        // there even when the ranks were recorded (the two sets differ only
+        // by neighbours of equal `U`, whose terms are zero), and it spares
+        // the rank reads, cache misses in front order.
+        let ranks = self.ranks.as_ref().filter(|_| self.second);
+        let last = ranks.map(|r| {
             let rx = r[x];
             nbs.iter()
                 .filter(|&&j| j != usize::MAX && r[j] >= 0 && r[j] < rx)
                 .map(|&j| r[j])
                 .fold(-1i64, i64::max)
         });
-        let frozen = |j: usize| match (&self.ranks, last) {
+        let frozen = |j: usize| match (ranks, last) {
             (Some(r), Some(t)) => r[j] >= 0 && r[j] <= t,
             _ => u[j] < ux,
         };
