@@ -639,26 +639,29 @@ fn cost_gradient_writes_the_library_adjoint_and_names_bad_targets() {
     write_npy(&observed_path, &ndarray::arr1(&[10.0, 40.0])).unwrap();
     let out = path(&dir, "g.npy");
     let json = path(&dir, "r.json");
-    let o = geodex(&[
-        "cost-gradient",
-        "--cost",
-        s(&cost_path),
-        "--source",
-        "2,3",
-        "--target",
-        "5,20:0.5",
-        "--targets",
-        s(&targets_path),
-        "--observed",
-        s(&observed_path),
-        "--misfit",
-        "--order",
-        "1",
-        "--out",
-        s(&out),
-        "--json",
-        s(&json),
-    ]);
+    let run = || {
+        geodex(&[
+            "cost-gradient",
+            "--cost",
+            s(&cost_path),
+            "--source",
+            "2,3",
+            "--target",
+            "5,20:0.5",
+            "--targets",
+            s(&targets_path),
+            "--observed",
+            s(&observed_path),
+            "--misfit",
+            "--order",
+            "1",
+            "--out",
+            s(&out),
+            "--json",
+            s(&json),
+        ])
+    };
+    let o = run();
     // Three targets but two observed values: refused, naming the flag.
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
@@ -668,26 +671,7 @@ fn cost_gradient_writes_the_library_adjoint_and_names_bad_targets() {
     );
 
     write_npy(&observed_path, &ndarray::arr1(&[10.0, 40.0, 3.0])).unwrap();
-    let o = geodex(&[
-        "cost-gradient",
-        "--cost",
-        s(&cost_path),
-        "--source",
-        "2,3",
-        "--target",
-        "5,20:0.5",
-        "--targets",
-        s(&targets_path),
-        "--observed",
-        s(&observed_path),
-        "--misfit",
-        "--order",
-        "1",
-        "--out",
-        s(&out),
-        "--json",
-        s(&json),
-    ]);
+    let o = run();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let got: ArrayD<f64> = read_npy(&out).unwrap();
 
@@ -812,4 +796,41 @@ fn tomography_reads_the_api_shaped_survey_and_names_bad_points() {
         line.contains("--data") && line.contains("outside the grid"),
         "{line}"
     );
+}
+
+#[test]
+fn cost_gradient_takes_a_tensor_metric_and_returns_one_value_per_component() {
+    let dir = TempDir::new().unwrap();
+    let (n0, n1) = (18, 15);
+    let m = ArrayD::from_shape_fn(IxDyn(&[n0, n1, 3]), |ix| {
+        let a = ix[0] as f64 / n0 as f64;
+        [2.0 + a.sin(), 0.4 * (ix[1] as f64 / 5.0).cos(), 1.5][ix[2]]
+    });
+    let tensor = path(&dir, "m.npy");
+    write_npy(&tensor, &m).unwrap();
+    let out = path(&dir, "g.npy");
+    let json = path(&dir, "r.json");
+    let o = geodex(&[
+        "cost-gradient",
+        "--tensor",
+        s(&tensor),
+        "--source",
+        "1,2",
+        "--target",
+        "16,12",
+        "--out",
+        s(&out),
+        "--json",
+        s(&json),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g: ArrayD<f64> = read_npy(&out).unwrap();
+    assert_eq!(g.shape(), &[n0, n1, 3]);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["with_respect_to"], "metric");
+    // U is homogeneous of degree 1/2 in M: Σ m ∂U/∂m = U/2.
+    let j = doc["objective"]["value"].as_f64().unwrap();
+    let euler: f64 = g.iter().zip(m.iter()).map(|(g, m)| g * m).sum();
+    assert!((euler - 0.5 * j).abs() < 1e-9 * j, "{euler} vs {j}/2");
 }

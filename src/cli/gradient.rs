@@ -5,6 +5,7 @@
 //! ```text
 //! geodex cost-gradient --cost W.npy --source 64,10 --target 64,118 --out G.npy
 //! geodex cost-gradient --cost W.npy --source 0,0 --targets Y.npy --observed T.npy --misfit --out G.npy
+//! geodex cost-gradient --tensor M.npy --source 0,0 --target 30,40 --out G.npy   # G: (N, M, 3)
 //! ```
 //!
 //! It prints the objective, the time of the forward solve and of the
@@ -21,6 +22,7 @@ use super::SpacingFlag;
 use crate::ops::grid_cost_gradient::{GridCostGradientRequest, ObjectiveSpec, TargetSpec};
 use crate::ops::spec::cost::InterpretationSpec;
 use crate::ops::spec::scheme::SourceSpec;
+use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpError};
 
 /// Flags of `geodex cost-gradient`.
@@ -30,8 +32,18 @@ pub struct CostGradientArgs {
     #[arg(long, value_name = "W.npy", conflicts_with = "shape")]
     pub cost: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
-    #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "N,M[,P]",
+        value_delimiter = ',',
+        conflicts_with = "tensor"
+    )]
     pub shape: Option<Vec<usize>>,
+    /// A Riemannian metric instead of a cost, as in `geodex distance`: an
+    /// array of shape (N, M, 3) with m00, m01, m11 per cell, or (N, M, P, 6)
+    /// in 3D. The gradient then has one more axis: one value per component.
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["cost", "speed"])]
+    pub tensor: Option<PathBuf>,
     /// Read --cost as a speed F = 1/W; the gradient is then with respect to F.
     #[arg(long)]
     pub speed: bool,
@@ -134,6 +146,7 @@ fn flag_of(field: &str, given: usize) -> String {
     }
     match field.split(['.', '[']).next().unwrap_or(field) {
         "cost" => "--cost".into(),
+        "metric" => "--tensor".into(),
         "spacing" => "--spacing".into(),
         "obstacles" => "--obstacles".into(),
         "order" => "--order".into(),
@@ -144,10 +157,21 @@ fn flag_of(field: &str, given: usize) -> String {
 /// `geodex cost-gradient`.
 pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
     let mut inputs = HashMap::new();
-    let mut cost = cost_of(&args.cost, &args.shape, &mut inputs)?;
-    if args.speed {
-        cost.interpretation = InterpretationSpec::Speed;
-    }
+    let (cost, metric) = match &args.tensor {
+        Some(p) => (
+            None,
+            Some(TensorSpec::Components(ComponentsTensor {
+                dataset: read("--tensor", p, &mut inputs)?,
+            })),
+        ),
+        None => {
+            let mut cost = cost_of(&args.cost, &args.shape, &mut inputs)?;
+            if args.speed {
+                cost.interpretation = InterpretationSpec::Speed;
+            }
+            (Some(cost), None)
+        }
+    };
     let obstacles = match &args.obstacles {
         Some(p) => Some(read("--obstacles", p, &mut inputs)?),
         None => None,
@@ -221,8 +245,8 @@ pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
         }
     }
     let request = GridCostGradientRequest {
-        cost: Some(cost),
-        metric: None,
+        cost,
+        metric,
         spacing: args.spacing.spacing.clone(),
         obstacles,
         sources,

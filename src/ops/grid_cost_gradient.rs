@@ -39,8 +39,8 @@ use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
 use crate::numerics::anisotropic::{self, metric_gradient, TensorOptions, TensorSolveError};
 use crate::numerics::eikonal::{
-    cost_gradient, probe_values, EikonalError, EikonalOptions, EikonalProblem, Method, Order,
-    Probe, StopReason,
+    adjoint_options, cost_gradient, probe_values, EikonalError, EikonalOptions, EikonalProblem,
+    Order, Probe, StopReason,
 };
 use crate::numerics::{self, Control};
 
@@ -227,21 +227,14 @@ impl GridCostGradientRequest {
         Ok(())
     }
 
-    /// The forward solve whose adjoint is taken: unfactored fast marching of
-    /// the request's order, recording its freezing order (which order 2
-    /// needs and which spares order 1 a sort).
+    /// The forward solve whose adjoint is taken ([`adjoint_options`] of the
+    /// request's order).
     pub fn options(&self) -> EikonalOptions {
-        let order = if self.order == 1 {
+        adjoint_options(if self.order == 1 {
             Order::First
         } else {
             Order::Second
-        };
-        let mut o = EikonalOptions::DEFAULT
-            .with_method(Method::FastMarching)
-            .with_order(order)
-            .with_factoring(false);
-        o.record_order = true;
-        o
+        })
     }
 }
 

@@ -763,7 +763,6 @@ pub(crate) fn probe_weights(
     weights: &[(Probe, f64)],
 ) -> Result<Vec<(usize, f64)>, EikonalError> {
     let mut out = Vec::with_capacity(weights.len());
-    let shape = grid.shape3();
     for (index, (probe, weight)) in weights.iter().enumerate() {
         let err = |reason: String| EikonalError::Option {
             field: "weights",
@@ -792,24 +791,7 @@ pub(crate) fn probe_weights(
                         grid.shape()
                     )));
                 }
-                let lo = p3.map(|x| x.floor().max(0.0) as usize);
-                for corner in 0..8usize {
-                    let mut idx = [0usize; 3];
-                    let mut wc = 1.0;
-                    for k in 0..3 {
-                        let up = corner >> k & 1 == 1;
-                        let t = p3[k] - lo[k] as f64;
-                        idx[k] = if up {
-                            (lo[k] + 1).min(shape[k] - 1)
-                        } else {
-                            lo[k].min(shape[k] - 1)
-                        };
-                        wc *= if up { t } else { 1.0 - t };
-                    }
-                    if wc > 0.0 {
-                        corners.push((grid.linear(idx), wc));
-                    }
-                }
+                corners = point_corners(grid, p3);
             }
         }
         for &(i, _) in &corners {
@@ -823,6 +805,45 @@ pub(crate) fn probe_weights(
         out.extend(corners.into_iter().map(|(i, wc)| (i, weight * wc)));
     }
     Ok(out)
+}
+
+/// The cells around the padded point `p3` (inside the grid) and their
+/// multilinear weights, those `> 0`: `U(p) = Σ w_c U_c` is the value a
+/// [`Probe::Point`] reads (an index past the last cell is clamped to it).
+pub(crate) fn point_corners(grid: &Grid, p3: [f64; 3]) -> Vec<(usize, f64)> {
+    let shape = grid.shape3();
+    let lo = p3.map(|x| x.floor().max(0.0) as usize);
+    let mut out = Vec::with_capacity(8);
+    for corner in 0..8usize {
+        let mut idx = [0usize; 3];
+        let mut wc = 1.0;
+        for k in 0..3 {
+            let up = corner >> k & 1 == 1;
+            let t = p3[k] - lo[k] as f64;
+            idx[k] = if up {
+                (lo[k] + 1).min(shape[k] - 1)
+            } else {
+                lo[k].min(shape[k] - 1)
+            };
+            wc *= if up { t } else { 1.0 - t };
+        }
+        if wc > 0.0 {
+            out.push((grid.linear(idx), wc));
+        }
+    }
+    out
+}
+
+/// The options of the forward solve that [`cost_gradient`] differentiates:
+/// fast marching of `order` without source factoring, recording the
+/// freezing order (order 2 needs it; at order 1 it spares the adjoint a sort).
+pub fn adjoint_options(order: Order) -> EikonalOptions {
+    let mut options = EikonalOptions::DEFAULT
+        .with_method(Method::FastMarching)
+        .with_order(order)
+        .with_factoring(false);
+    options.record_order = true;
+    options
 }
 
 /// The reached cells in decreasing `U` (decreasing freezing rank when the

@@ -40,8 +40,8 @@ mod sources;
 // its local fronts with the same update as the multi-source fast marching.
 pub(crate) mod update;
 
-pub(crate) use gradient::{backward_order, probe_weights};
-pub use gradient::{cost_gradient, distance_gradient, probe_values, Probe};
+pub use gradient::{adjoint_options, cost_gradient, distance_gradient, probe_values, Probe};
+pub(crate) use gradient::{backward_order, point_corners, probe_weights};
 pub use level_set::{
     level_set_distance, locate_interface, mask_source, Interface, InterfaceFit, LevelSetError,
     LevelSetOptions,

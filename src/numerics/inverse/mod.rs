@@ -15,7 +15,8 @@
 pub mod metric_fit;
 pub mod tomography;
 
-use super::eikonal::{EikonalOptions, Order};
+pub use super::eikonal::adjoint_options;
+use super::eikonal::point_corners;
 use super::grid::Grid;
 
 /// The value at point `p` (index coordinates, caller axes) of the
@@ -46,35 +47,5 @@ pub(crate) fn corners(grid: &Grid, p: &[f64]) -> Option<Vec<(usize, f64)>> {
     if !(p3.iter().all(|x| x.is_finite()) && grid.contains_point3(p3)) {
         return None;
     }
-    let shape = grid.shape3();
-    let lo = p3.map(|x| x.floor().max(0.0) as usize);
-    let mut out = Vec::with_capacity(8);
-    for corner in 0..8usize {
-        let mut idx = [0usize; 3];
-        let mut wc = 1.0;
-        for k in 0..3 {
-            let up = corner >> k & 1 == 1;
-            let t = p3[k] - lo[k] as f64;
-            idx[k] = if up {
-                (lo[k] + 1).min(shape[k] - 1)
-            } else {
-                lo[k].min(shape[k] - 1)
-            };
-            wc *= if up { t } else { 1.0 - t };
-        }
-        if wc > 0.0 {
-            out.push((grid.linear(idx), wc));
-        }
-    }
-    Some(out)
-}
-
-/// The solver options the adjoint differentiates: fast marching of `order`
-/// without source factoring (the freezing order recorded at order 2).
-pub fn adjoint_options(order: Order) -> EikonalOptions {
-    let mut options = EikonalOptions::DEFAULT
-        .with_order(order)
-        .with_factoring(false);
-    options.record_order = order == Order::Second;
-    options
+    Some(point_corners(grid, p3))
 }
