@@ -8,7 +8,9 @@
 //! * [`tiff`]: TIFF through the `tiff` crate (read grey/colour/float, multi-page;
 //!   write 32-bit float).
 //! * [`nifti`]: NIfTI-1 `.nii` / `.nii.gz` (read, write).
-//! * [`render`]: colour-mapped 8-bit PNG previews for people.
+//! * [`render`]: colour-mapped 8-bit PNG previews for people (colour bar,
+//!   slices and montages, label overlays, tensor glyphs); [`canvas`]: the
+//!   pixels and the bitmap font they are drawn with.
 //! * [`mesh`]: triangle meshes (OBJ, PLY, OFF, STL in; PLY, OBJ, JSON out).
 //!
 //! # Axis conventions
@@ -33,6 +35,7 @@
 //! ```
 
 pub mod array;
+pub mod canvas;
 pub mod mesh;
 pub mod mesh_picture;
 pub mod nifti;
@@ -45,7 +48,9 @@ pub use array::{ArrayData, DType};
 pub use nifti::encode_nifti;
 pub use npy::encode_npy;
 pub use raster::encode_png16;
-pub use render::{render_png, Colormap, IsoLines, RenderOptions, RenderStyle};
+pub use render::{
+    render_png, render_png_over, Colormap, IsoLines, Overlay, RenderOptions, RenderStyle, View,
+};
 pub use tiff::encode_tiff_f32;
 
 /// A file format the codecs know.
