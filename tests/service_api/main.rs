@@ -13,6 +13,7 @@ mod load;
 mod mesh;
 mod openapi;
 mod paths;
+mod pictures;
 mod playground;
 mod segment;
 mod shape;

@@ -133,7 +133,7 @@ window.GX = window.GX || {};
     }
     const m = metricSection().cost;
     const r = await GX.api("POST", "/v1/grid/metric", { json: { dataset: m.dataset, design: m.design } });
-    await setImg($("base"), r.metric.data_url + "?format=png");
+    await setImg($("base"), r.metric.data_url + "?format=png&colorbar=false");
     GX.status(`metric ${kind}: ${r.stats ? JSON.stringify(r.stats) : ""}`);
   }
 
@@ -250,7 +250,7 @@ window.GX = window.GX || {};
     S.distanceId = r.distance.id;
     const ov = $("overlay");
     ov.style.display = "";
-    await setImg(ov, r.distance.data_url + "?format=png");
+    await setImg(ov, r.distance.data_url + "?format=png&colorbar=false");
     const ms = performance.now() - t0;
     GX.stats.firstMapMs.push(ms);
     GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
@@ -450,7 +450,7 @@ window.GX = window.GX || {};
     if (op === "edt") {
       const r = await GX.api("POST", "/v1/grid/edt", { json: { mask: id, mode: "signed" } });
       ov.style.display = "";
-      await setImg(ov, r.distance.data_url + "?format=png");
+      await setImg(ov, r.distance.data_url + "?format=png&colorbar=false");
       drawMask(new Uint8Array(0), [0, 0, 0, 0]);
       await loadField(r.distance.data_url, "signed distance");
       GX.status("signed Euclidean distance transform (negative inside)");

@@ -95,13 +95,302 @@ pub enum OutputFormat {
     Glb,
 }
 
-/// Query of a download.
-#[derive(Debug, Deserialize, IntoParams)]
+/// Query of a download. The parameters after `format` shape the picture of
+/// `format=png` (they are ignored by the other formats); each is parsed
+/// here, so that a bad value is a 400 naming it.
+#[derive(Debug, Default, Deserialize, IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct DataQuery {
     /// The representation; default: from `Accept`, else `npy`.
     #[param(inline)]
     pub format: Option<OutputFormat>,
+    /// png: the colour map of continuous values: `viridis` (default), `turbo`, `grey`,
+    /// `magma` or `inferno`.
+    #[param(value_type = Option<String>, example = "magma")]
+    pub colormap: Option<String>,
+    /// png: the value at the bottom of the colour map; default the finite minimum.
+    #[param(value_type = Option<f64>)]
+    pub vmin: Option<String>,
+    /// png: the value at the top of the colour map; default the finite maximum.
+    #[param(value_type = Option<f64>)]
+    pub vmax: Option<String>,
+    /// png: this many iso-value lines evenly spaced inside the range (0: none); default 10
+    /// for float arrays, none otherwise.
+    #[param(value_type = Option<u32>, minimum = 0, maximum = 1000)]
+    pub levels: Option<String>,
+    /// png: one iso-value line every this many value units from `vmin` (instead of `levels`).
+    #[param(value_type = Option<f64>)]
+    pub level_step: Option<String>,
+    /// png: a colour bar with the range and the iso-line step beside continuous maps;
+    /// default `true`.
+    #[param(value_type = Option<bool>)]
+    pub colorbar: Option<String>,
+    /// png: `auto` (default: labels for integer arrays, tensor glyphs for float
+    /// `(rows, cols, 3)` arrays, a colour map otherwise), `continuous`, `categorical` or
+    /// `tensor`.
+    #[param(value_type = Option<String>, example = "categorical")]
+    pub style: Option<String>,
+    /// png, 3D arrays: the slice shown, `axis:index` (e.g. `2:17`); default the middle
+    /// slice along axis 0, named in the picture's caption.
+    #[param(value_type = Option<String>, example = "0:32")]
+    pub slice: Option<String>,
+    /// png, 3D arrays: a grid of `count` evenly spaced slices along axis 0, or `axis:count`
+    /// (at most 64), each with its index.
+    #[param(value_type = Option<String>, example = "0:16")]
+    pub montage: Option<String>,
+    /// png: the id of an image dataset of the same shape to draw the map over (in grey).
+    #[param(value_type = Option<String>)]
+    pub over: Option<String>,
+    /// png: the opacity of the map over `over`, in [0, 1]; default 0.5.
+    #[param(value_type = Option<f64>)]
+    pub alpha: Option<String>,
+    /// png: points to mark (e.g. the seeds of a segmentation), index coordinates, axis 0
+    /// first, `;` between points: `10,5;50,55` (3D: `k,i,j`, drawn on the slice they lie on).
+    #[param(value_type = Option<String>, example = "10,5;50,55")]
+    pub markers: Option<String>,
+}
+
+/// The picture parameters of a [`DataQuery`], parsed.
+#[derive(Debug, Clone, Default)]
+pub struct Picture {
+    /// Colours, range, iso lines, colour bar, view; `range` may be half given.
+    pub options: io::RenderOptions,
+    /// `vmin`, `vmax` as given (the missing end comes from the data).
+    pub vmin: Option<f64>,
+    /// See `vmin`.
+    pub vmax: Option<f64>,
+    /// Whether `levels` or `level_step` was given (else the default applies).
+    pub levels_given: bool,
+    /// The dataset to draw under the map.
+    pub over: Option<String>,
+    /// Opacity of the map over `over`.
+    pub alpha: f64,
+    /// Points to mark.
+    pub markers: Vec<Vec<f64>>,
+}
+
+fn parse_f64(name: &str, v: &str) -> Result<f64, ApiError> {
+    v.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| ApiError::bad_request(name, format!("{name}: '{v}' is not a finite number")))
+}
+
+fn parse_pair(name: &str, v: &str, what: &str) -> Result<(usize, usize), ApiError> {
+    let bad = || ApiError::bad_request(name, format!("{name}: '{v}' is not {what}"));
+    let (a, b) = v.split_once(':').ok_or_else(bad)?;
+    Ok((
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    ))
+}
+
+impl DataQuery {
+    /// The picture parameters, each checked on its own (against the array
+    /// in [`check_picture`]).
+    pub fn picture(&self) -> Result<Picture, ApiError> {
+        let mut p = Picture {
+            alpha: 0.5,
+            ..Picture::default()
+        };
+        p.options.colorbar = true;
+        if let Some(c) = &self.colormap {
+            p.options.colormap = io::Colormap::ALL
+                .into_iter()
+                .find(|m| m.name() == c.trim().to_ascii_lowercase())
+                .ok_or_else(|| {
+                    ApiError::bad_request(
+                        "colormap",
+                        format!("colormap: '{c}' is none of viridis, turbo, grey, magma, inferno"),
+                    )
+                })?;
+        }
+        p.vmin = self
+            .vmin
+            .as_deref()
+            .map(|v| parse_f64("vmin", v))
+            .transpose()?;
+        p.vmax = self
+            .vmax
+            .as_deref()
+            .map(|v| parse_f64("vmax", v))
+            .transpose()?;
+        if let (Some(lo), Some(hi)) = (p.vmin, p.vmax) {
+            if lo >= hi {
+                return Err(ApiError::bad_request(
+                    "vmin",
+                    format!("vmin {lo} must be below vmax {hi}"),
+                ));
+            }
+        }
+        match (&self.levels, &self.level_step) {
+            (Some(_), Some(_)) => {
+                return Err(ApiError::bad_request(
+                    "level_step",
+                    "give levels (a count) or level_step (a spacing), not both",
+                ))
+            }
+            (Some(n), None) => {
+                let n: usize = n
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|&n| n <= 1000)
+                    .ok_or_else(|| {
+                        ApiError::bad_request(
+                            "levels",
+                            format!("levels: '{n}' is not a count 0..=1000"),
+                        )
+                    })?;
+                p.levels_given = true;
+                p.options.iso_lines = (n > 0).then_some(io::IsoLines::Count(n));
+            }
+            (None, Some(s)) => {
+                let s = parse_f64("level_step", s)?;
+                if s <= 0.0 {
+                    return Err(ApiError::bad_request(
+                        "level_step",
+                        "level_step must be > 0",
+                    ));
+                }
+                p.levels_given = true;
+                p.options.iso_lines = Some(io::IsoLines::Spacing(s));
+            }
+            (None, None) => {}
+        }
+        if let Some(c) = &self.colorbar {
+            p.options.colorbar = match c.trim() {
+                "true" | "1" | "yes" => true,
+                "false" | "0" | "no" => false,
+                _ => {
+                    return Err(ApiError::bad_request(
+                        "colorbar",
+                        format!("colorbar: '{c}' is not true or false"),
+                    ))
+                }
+            };
+        }
+        if let Some(st) = &self.style {
+            p.options.style = match st.trim() {
+                "auto" => io::RenderStyle::Auto,
+                "continuous" => io::RenderStyle::Continuous,
+                "categorical" => io::RenderStyle::Categorical,
+                "tensor" => io::RenderStyle::Tensor,
+                _ => {
+                    return Err(ApiError::bad_request(
+                        "style",
+                        format!("style: '{st}' is none of auto, continuous, categorical, tensor"),
+                    ))
+                }
+            };
+        }
+        match (&self.slice, &self.montage) {
+            (Some(_), Some(_)) => {
+                return Err(ApiError::bad_request(
+                    "montage",
+                    "give slice (one plane) or montage (a grid of planes), not both",
+                ))
+            }
+            (Some(v), None) => {
+                let (axis, index) = parse_pair("slice", v, "axis:index")?;
+                p.options.view = io::View::Slice { axis, index };
+            }
+            (None, Some(v)) => {
+                let (axis, count) = if v.contains(':') {
+                    parse_pair("montage", v, "count or axis:count")?
+                } else {
+                    let n = v.trim().parse().map_err(|_| {
+                        ApiError::bad_request(
+                            "montage",
+                            format!("montage: '{v}' is not count or axis:count"),
+                        )
+                    })?;
+                    (0, n)
+                };
+                p.options.view = io::View::Montage { axis, count };
+            }
+            (None, None) => {}
+        }
+        if let Some(id) = &self.over {
+            check_id(id).map_err(|e| e.with_field("over"))?;
+            p.over = Some(id.clone());
+        }
+        if let Some(a) = &self.alpha {
+            p.alpha = parse_f64("alpha", a)?;
+        }
+        if let Some(m) = &self.markers {
+            for point in m.split(';').filter(|s| !s.trim().is_empty()) {
+                let coords: Result<Vec<f64>, ApiError> =
+                    point.split(',').map(|c| parse_f64("markers", c)).collect();
+                p.markers.push(coords?);
+            }
+        }
+        Ok(p)
+    }
+}
+
+/// The picture of `array` (over `under`, when `over` was given); a
+/// parameter that does not fit the array is a 400 naming it.
+pub fn render_picture(
+    array: &ArrayData,
+    picture: &Picture,
+    under: Option<&ArrayData>,
+) -> Result<Vec<u8>, ApiError> {
+    let mut options = picture.options;
+    // Float fields (distance maps) get iso-value lines by default.
+    if !picture.levels_given && matches!(array, ArrayData::F64(_) | ArrayData::F32(_)) {
+        options.iso_lines = Some(io::IsoLines::Count(10));
+    }
+    if picture.vmin.is_some() || picture.vmax.is_some() {
+        let (lo, hi) = finite_min_max(array);
+        let (lo, hi) = (picture.vmin.unwrap_or(lo), picture.vmax.unwrap_or(hi));
+        if lo >= hi {
+            let field = if picture.vmin.is_some() {
+                "vmin"
+            } else {
+                "vmax"
+            };
+            return Err(ApiError::bad_request(
+                field,
+                format!("the range ({lo}, {hi}) is empty: vmin must be below vmax"),
+            ));
+        }
+        options.range = Some((lo, hi));
+    }
+    let overlay = io::Overlay {
+        image: under,
+        alpha: picture.alpha,
+        markers: &picture.markers,
+    };
+    io::render::check_options(array, &options, &overlay).map_err(|e| {
+        let field = match e.option {
+            "view" if matches!(options.view, io::View::Montage { .. }) => "montage",
+            "view" => "slice",
+            "overlay" => "over",
+            "range" => "vmin",
+            "iso_lines" => "levels",
+            other => other,
+        };
+        ApiError::bad_request(field, format!("{field}: {}", e.reason))
+    })?;
+    io::render_png_over(array, &options, &overlay)
+        .map_err(|e| ApiError::not_acceptable(format!("cannot encode this array: {e}")))
+}
+
+fn finite_min_max(array: &ArrayData) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..array.len() {
+        if let Some(v) = array.get_f64(i).filter(|v| v.is_finite()) {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    if lo <= hi {
+        (lo, hi)
+    } else {
+        (0.0, 1.0)
+    }
 }
 
 /// A small array as JSON.
@@ -346,13 +635,9 @@ pub fn encode(
             OutputFormat::Tiff => io::encode_tiff_f32(array).map(|b| (b, "image/tiff")),
             OutputFormat::Png16 => io::encode_png16(array, None).map(|b| (b, "image/png")),
             OutputFormat::Png => {
-                // Float fields (distance maps) get iso-value lines; labels are categorical.
-                let iso = matches!(array, ArrayData::F64(_) | ArrayData::F32(_));
-                let options = io::RenderOptions {
-                    iso_lines: iso.then_some(io::IsoLines::Count(10)),
-                    ..Default::default()
-                };
-                io::render_png(array, &options).map(|b| (b, "image/png"))
+                // The default picture: iso lines on float fields, a colour bar.
+                let picture = DataQuery::default().picture()?;
+                return render_picture(array, &picture, None).map(|b| (b, "image/png"));
             }
             OutputFormat::Ply | OutputFormat::Obj | OutputFormat::Glb => return Err(ApiError::not_acceptable(
                 "ply, obj and glb are offered for mesh datasets only; use npy, tiff, png16, png or json",
@@ -369,7 +654,10 @@ pub fn encode(
     summary = "Download a dataset",
     description = "The array in the representation named by `?format=`, else by `Accept`, else NPY: \
 `npy` (exact, any dtype), `tiff` (32-bit float), `png16` (16-bit grey scaled to the finite range), \
-`png` (colour-mapped for people; distance maps get iso-distance lines) or `json` \
+`png` (colour-mapped for people: distance maps get iso-distance lines and a colour bar with \
+the range and the line step; labels a qualitative palette that keeps neighbours apart; 3D \
+arrays a named slice or a montage; 2D tensor fields ellipse glyphs; see the picture \
+parameters) or `json` \
 (`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406). A mesh \
 dataset is offered as `ply` (binary PLY with its vertex properties, the default), `obj`, `json` \
 or `glb` (glTF binary, what web viewers load, with the vertex properties as colours and \
@@ -409,6 +697,25 @@ pub async fn get_data(
     let (bytes, media) = if format == OutputFormat::Npy {
         let bytes = crate::datasets::blocking(move || store.read_npy_blocking(&id)).await?;
         (bytes, "application/x-npy")
+    } else if format == OutputFormat::Png {
+        let picture = query.picture()?;
+        let input = state.store.load(&path.id).await?;
+        let under = match &picture.over {
+            Some(over) => Some(
+                state
+                    .store
+                    .load(over)
+                    .await
+                    .map_err(|e| ApiError::from(e).with_field("over"))?,
+            ),
+            None => None,
+        };
+        let bytes = tokio::task::spawn_blocking(move || {
+            render_picture(&input.array, &picture, under.as_ref().map(|u| &*u.array))
+        })
+        .await
+        .map_err(ApiError::internal)??;
+        (bytes, "image/png")
     } else {
         let input = state.store.load(&path.id).await?;
         tokio::task::spawn_blocking(move || encode(&input.array, format))

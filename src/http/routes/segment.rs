@@ -78,6 +78,9 @@ pub struct SkeletonResponse {
     pub skeleton: DatasetRef,
     /// The radius function on the skeleton (f64, 0 elsewhere).
     pub radius: DatasetRef,
+    /// 2D: the skeleton and its nodes over the shape (u8 RGB; `?format=png`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub picture: Option<DatasetRef>,
     /// 2D: `nodes` (`id`, `point`, `radius`, `degree`) and `edges` (`source`, `target`, `points`, `radius`, `length`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub graph: Option<serde_json::Value>,
@@ -113,6 +116,9 @@ pub struct PlanResponse {
     pub clearance: DatasetRef,
     /// Distance to the goal in the free space (f64).
     pub distance: DatasetRef,
+    /// 2D: the path over the obstacles (u8 RGB; `?format=png`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub picture: Option<DatasetRef>,
 }
 
 /// Exact Euclidean distance transform.
