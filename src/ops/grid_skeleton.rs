@@ -11,6 +11,8 @@ use utoipa::ToSchema;
 
 use super::spec::grid::{check_non_negative, check_spacing, fetch, grid_of, mask_of, shaped};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
+use crate::io::canvas::Canvas;
+use crate::io::mesh_picture::magnification;
 use crate::io::ArrayData;
 use crate::numerics::skeleton::{self, SkeletonError, SkeletonGraph, SkeletonOptions};
 use crate::numerics::Control;
@@ -64,7 +66,8 @@ impl Operation for GridSkeletonRequest {
     }
 
     /// Arrays: `skeleton` (u8 mask), `radius` (f64, the distance to the
-    /// nearest outside cell on the skeleton, 0 elsewhere). Document:
+    /// nearest outside cell on the skeleton, 0 elsewhere), in 2D `picture`
+    /// (u8 RGB, see [`skeleton_picture`]). Document:
     /// `{"graph": {"nodes", "edges"}` (2D), `"stats": {...}}`.
     fn run(
         &self,
@@ -99,6 +102,23 @@ impl Operation for GridSkeletonRequest {
             document["stats"]["branches"] = g.edges.len().into();
             document["graph"] = graph_json(g);
         }
+        let mut arrays = Vec::new();
+        if grid.ndim() == 2 {
+            let shape = grid.shape();
+            let nodes: Vec<[f64; 2]> = sk
+                .graph
+                .as_ref()
+                .map(|g| g.nodes.iter().map(|n| n.point).collect())
+                .unwrap_or_default();
+            let picture = skeleton_picture([shape[0], shape[1]], &mask, &sk.mask, &nodes)
+                .to_array()
+                .map_err(|e| OpError::invalid("mask", e.to_string()))?;
+            arrays.push(OutputArray {
+                name: "picture".into(),
+                array: picture,
+                spacing: None,
+            });
+        }
         let sk_u8: Vec<u8> = sk.mask.iter().map(|&m| u8::from(m)).collect();
         Ok(OpOutput::new(
             vec![
@@ -112,10 +132,54 @@ impl Operation for GridSkeletonRequest {
                     array: ArrayData::F64(shaped(&grid, sk.radius)?),
                     spacing,
                 },
-            ],
+            ]
+            .into_iter()
+            .chain(arrays)
+            .collect(),
             document,
         ))
     }
+}
+
+/// Colour of the shape in [`skeleton_picture`].
+pub const SHAPE: [u8; 3] = [200, 210, 225];
+/// Colour of the skeleton cells.
+pub const SKELETON: [u8; 3] = [215, 25, 28];
+/// Colour of the graph's nodes (branch ends and junctions).
+pub const NODE: [u8; 3] = [30, 90, 220];
+
+/// The skeleton over its shape, for people to look at: cells magnified
+/// `s = io::mesh_picture::magnification(rows, cols)` times; outside white,
+/// the shape light blue-grey, skeleton cells red, the graph's nodes blue
+/// discs ringed in black (index coordinates, axis 0 first).
+pub fn skeleton_picture(
+    [rows, cols]: [usize; 2],
+    shape: &[bool],
+    skeleton: &[bool],
+    nodes: &[[f64; 2]],
+) -> Canvas {
+    let s = magnification(rows, cols);
+    let mut c = Canvas::new(cols * s, rows * s, [255; 3]);
+    for r in 0..rows {
+        for q in 0..cols {
+            let i = r * cols + q;
+            let colour = if skeleton[i] {
+                SKELETON
+            } else if shape[i] {
+                SHAPE
+            } else {
+                continue;
+            };
+            c.fill_rect((q * s) as i64, (r * s) as i64, s, s, colour);
+        }
+    }
+    let r = 1.5 + s as f64;
+    for p in nodes {
+        let (x, y) = ((p[1] + 0.5) * s as f64 - 0.5, (p[0] + 0.5) * s as f64 - 0.5);
+        c.disc(x, y, r + 1.0, [0; 3]);
+        c.disc(x, y, r, NODE);
+    }
+    c
 }
 
 /// The skeleton graph as the API gives it: `{"nodes": [{"id", "point",
@@ -154,6 +218,30 @@ fn graph_json(g: &SkeletonGraph) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_skeleton_picture_shows_shape_skeleton_and_nodes() {
+        // A 10 × 30 bar; its skeleton row 5, columns 5..25, nodes at both ends.
+        let (rows, cols) = (10, 30);
+        let shape: Vec<bool> = (0..rows * cols)
+            .map(|i| (2..8).contains(&(i / cols)) && (2..28).contains(&(i % cols)))
+            .collect();
+        let skeleton: Vec<bool> = (0..rows * cols)
+            .map(|i| i / cols == 5 && (5..25).contains(&(i % cols)))
+            .collect();
+        let c = skeleton_picture([rows, cols], &shape, &skeleton, &[[5.0, 5.0], [5.0, 24.0]]);
+        let s = magnification(rows, cols);
+        let at = |r: usize, q: usize| c.get(q * s + s / 2, r * s + s / 2);
+        assert_eq!((c.width, c.height), (cols * s, rows * s));
+        assert_eq!(at(0, 0), Some([255; 3]));
+        assert_eq!(at(3, 10), Some(SHAPE));
+        assert_eq!(at(5, 15), Some(SKELETON));
+        assert_eq!(at(5, 5), Some(NODE));
+        if std::env::var_os("GEODEX_PICS").is_some() {
+            let _ = std::fs::create_dir_all("/tmp/pics");
+            let _ = std::fs::write("/tmp/pics/skeleton.png", c.to_png().expect("png"));
+        }
+    }
     use crate::numerics::skeleton::{SkeletonEdge, SkeletonNode};
 
     /// The graph types as they were when the numerical core derived
