@@ -1136,7 +1136,7 @@ pub fn render(
                 .map(|st| vec![format!("step {}", short_number(st))])
                 .unwrap_or_default(),
             ticks,
-            unreached: all.iter().any(|&v| v == f64::INFINITY),
+            unreached: all.contains(&f64::INFINITY),
         });
     }
     Ok(compose(map, caption.as_deref(), bar.as_ref(), ts))
