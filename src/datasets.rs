@@ -28,6 +28,7 @@ use crate::ops::InputArray;
 
 pub mod cache;
 pub mod inputs;
+pub mod list;
 pub mod mesh;
 
 /// Whether a dataset is 2D or 3D.

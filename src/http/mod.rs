@@ -71,7 +71,7 @@ impl AppState {
 /// The routes that the OpenAPI document describes.
 pub fn api_router() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(openapi::ApiDoc::openapi())
-        .routes(routes!(routes::datasets::upload))
+        .routes(routes!(routes::datasets::upload, routes::datasets::list))
         .routes(routes!(
             routes::datasets::get_meta,
             routes::datasets::delete

@@ -3,6 +3,7 @@
 
 mod common;
 mod connections;
+mod datasets;
 mod errors;
 mod flow;
 mod gradient;

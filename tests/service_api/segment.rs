@@ -493,13 +493,27 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
         "{}",
         mesh["properties"]
     );
-    let obj = app
-        .get(&format!("{url}?format=obj"))
+    // OBJ would drop the values: refused, naming PLY (which keeps them).
+    let obj = problem(app.get(&format!("{url}?format=obj")).await, 406).await;
+    assert!(
+        obj["detail"].as_str().expect("detail").contains("value"),
+        "{obj}"
+    );
+    let ply = app
+        .get(&format!("{url}?format=ply"))
         .await
-        .text()
+        .bytes()
         .await
-        .expect("obj");
-    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), nt);
+        .expect("ply");
+    let faces = geodex::io::mesh::read_mesh(
+        &ply,
+        Some(geodex::io::mesh::MeshFormat::Ply),
+        &geodex::io::mesh::MeshLimits::default(),
+    )
+    .expect("ply")
+    .mesh
+    .num_faces();
+    assert_eq!(faces, nt);
     // The picture: the mesh over the image, magnified 1024/48 -> 4 (capped),
     // as a PNG; vertex 0's pixel has the vertex colour.
     let s = geodex::io::mesh_picture::magnification(n0, n1);

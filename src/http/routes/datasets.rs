@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::State;
+use axum::extract::{FromRequest, Multipart, Request, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::datasets::{valid_id, DatasetMeta, StoreError};
-use crate::http::extract::{ApiBytes, ApiPath, ApiQuery};
+use crate::http::extract::{bytes_rejection, ApiPath, ApiQuery};
 use crate::http::AppState;
 use crate::io::mesh::{glb, read_mesh, write, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData, Decoded, Format};
@@ -393,6 +393,38 @@ fn finite_min_max(array: &ArrayData) -> (f64, f64) {
     }
 }
 
+/// Which per-vertex values of a mesh result `?format=npy` downloads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum MeshProperty {
+    /// The geodesic distance per vertex (f64; `mesh.distance`, `mesh.voronoi`).
+    Distance,
+    /// The label per vertex (i32; `mesh.voronoi`, `mesh.distance` with several sources).
+    Label,
+    /// The value per vertex (f64; `grid.mesh`).
+    Value,
+}
+
+impl MeshProperty {
+    fn name(self) -> &'static str {
+        match self {
+            MeshProperty::Distance => "distance",
+            MeshProperty::Label => "label",
+            MeshProperty::Value => "value",
+        }
+    }
+}
+
+/// Query of a mesh download.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct MeshValuesQuery {
+    /// Mesh datasets with `format=npy`: which per-vertex values; default the
+    /// first the mesh carries of `distance`, `value`, `label`.
+    #[param(inline)]
+    pub property: Option<MeshProperty>,
+}
+
 /// A small array as JSON.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct ArrayJson {
@@ -433,6 +465,15 @@ pub async fn decode_upload(
     hint: Option<Format>,
     field: &'static str,
 ) -> Result<Decoded, ApiError> {
+    if let Some(actual) = sniff_mismatch(&bytes, hint) {
+        return Err(ApiError::unsupported_media_type(format!(
+            "{field}: this is {}, not {}: send Content-Type {} or omit it (the format is then \
+             detected from the bytes)",
+            format_name(actual),
+            hint.map_or("", format_name),
+            actual.media_type()
+        )));
+    }
     let limits = state.io_limits;
     let (decoded, _) = state
         .pool
@@ -454,6 +495,212 @@ pub async fn decode_upload(
     Ok(decoded)
 }
 
+/// The array format the bytes announce when it contradicts `hint` (the
+/// format a `Content-Type` or `?format=` named): a JPEG sent as
+/// `image/png` is refused with the way out instead of failing in the PNG
+/// decoder. Bytes with no known magic (or no hint) are left to the decoder.
+pub fn sniff_mismatch(bytes: &[u8], hint: Option<Format>) -> Option<Format> {
+    let said = hint?;
+    let actual = Format::sniff(bytes)?;
+    (actual != said).then_some(actual)
+}
+
+/// A format as people name it, with its article (`a JPEG`).
+fn format_name(f: Format) -> &'static str {
+    match f {
+        Format::Npy => "an NPY file",
+        Format::Png => "a PNG",
+        Format::Jpeg => "a JPEG",
+        Format::Tiff => "a TIFF",
+        Format::Nifti => "a NIfTI file",
+    }
+}
+
+/// The `?format=` value of an array format.
+fn actual_format_value(f: Format) -> &'static str {
+    match f {
+        Format::Npy => "npy",
+        Format::Png => "png",
+        Format::Jpeg => "jpeg",
+        Format::Tiff => "tiff",
+        Format::Nifti => "nifti",
+    }
+}
+
+/// The body of `POST /v1/datasets`: the raw file, or a `multipart/form-data`
+/// form with a `file` part (its own `Content-Type` names the format, like the
+/// raw body's) and an optional `format` part (text, the values of `?format=`).
+#[derive(Debug)]
+pub struct UploadBody {
+    /// The file's bytes.
+    pub bytes: bytes::Bytes,
+    /// The headers that describe the file: the request's, or the `file`
+    /// part's `Content-Type`.
+    pub headers: HeaderMap,
+    /// The form's `format` part.
+    pub format: Option<UploadFormat>,
+    /// Where the file was: `body` or `file`.
+    pub field: &'static str,
+}
+
+impl<S: Send + Sync> FromRequest<S> for UploadBody {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
+        let is_form = req
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| v.to_ascii_lowercase().starts_with("multipart/form-data"));
+        if !is_form {
+            let headers = req.headers().clone();
+            let bytes = bytes::Bytes::from_request(req, state)
+                .await
+                .map_err(bytes_rejection)?;
+            return Ok(Self {
+                bytes,
+                headers,
+                format: None,
+                field: "body",
+            });
+        }
+        let mut form = Multipart::from_request(req, state)
+            .await
+            .map_err(|e| ApiError::bad_request("body", format!("body: {}", e.body_text())))?;
+        let mut file = None;
+        let mut format = None;
+        while let Some(part) = form
+            .next_field()
+            .await
+            .map_err(super::grid::multipart_error)?
+        {
+            match part.name().unwrap_or("") {
+                "file" => {
+                    let mut headers = HeaderMap::new();
+                    if let Some(ct) = part.content_type().and_then(|c| c.parse().ok()) {
+                        headers.insert(header::CONTENT_TYPE, ct);
+                    }
+                    let bytes = part.bytes().await.map_err(super::grid::multipart_error)?;
+                    file = Some((bytes, headers));
+                }
+                "format" => {
+                    let text = part.text().await.map_err(super::grid::multipart_error)?;
+                    let value = serde_json::Value::String(text.trim().to_ascii_lowercase());
+                    format = Some(serde_json::from_value::<UploadFormat>(value).map_err(|_| {
+                        ApiError::invalid_field(
+                            "format",
+                            format!(
+                                "'{}' is not one of npy, png, jpeg, tiff, nifti, obj, ply, off, stl",
+                                text.trim()
+                            ),
+                        )
+                    })?);
+                }
+                other => return Err(ApiError::invalid_field(
+                    other.to_string(),
+                    "unknown part; an upload form has a `file` part and an optional `format` part",
+                )),
+            }
+        }
+        let (bytes, headers) = file.ok_or_else(|| {
+            ApiError::invalid_field("file", "the form has no `file` part (the file to store)")
+        })?;
+        Ok(Self {
+            bytes,
+            headers,
+            format,
+            field: "file",
+        })
+    }
+}
+
+/// The form of an upload (`multipart/form-data`).
+#[derive(Debug, ToSchema)]
+pub struct UploadForm {
+    /// The file; its part's `Content-Type` names the format (else it is detected).
+    #[schema(value_type = String, format = Binary)]
+    pub file: Vec<u8>,
+    /// The format, as `?format=` (overrides the part's `Content-Type`).
+    pub format: Option<UploadFormat>,
+}
+
+/// Query of the listing.
+#[derive(Debug, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct ListQuery {
+    /// Most datasets on the page, 1 to 1000; default 100.
+    pub limit: Option<usize>,
+    /// The `next_cursor` of the previous page; omitted for the first page.
+    pub cursor: Option<String>,
+}
+
+/// One page of datasets.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DatasetList {
+    /// The datasets, newest first (id descending: ids are time-ordered UUIDv7).
+    pub items: Vec<DatasetMeta>,
+    /// Pass as `?cursor=` for the next page; `null` on the last page.
+    pub next_cursor: Option<String>,
+}
+
+/// Most datasets on one page of the listing.
+pub const LIST_MAX_LIMIT: usize = 1000;
+
+/// Lists the datasets, a page at a time.
+#[utoipa::path(
+    get,
+    path = "/v1/datasets",
+    tag = "datasets",
+    summary = "List datasets",
+    description = "The live datasets (uploads and results, arrays and meshes), newest first: by id, \
+descending, ids being time-ordered UUIDv7. Each item is the dataset's metadata (id, kind `image`, \
+`volume` or `mesh`, shape (a mesh: `[vertices, 3]`), dtype, `byte_size`, `created_at`). A page holds \
+`limit` items (default 100, at most 1000); `next_cursor`, also sent as a `Link: <...>; rel=\"next\"` \
+header, is the last id of the page, and the next page lists the ids below it: the walk is stable \
+while datasets are added (newer ones sort before the cursor) or removed.",
+    params(ListQuery),
+    responses(
+        (status = 200, description = "One page.", body = DatasetList),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+    )
+)]
+pub async fn list(
+    State(state): State<AppState>,
+    ApiQuery(query): ApiQuery<ListQuery>,
+) -> Result<Response, ApiError> {
+    let limit = query.limit.unwrap_or(100);
+    if !(1..=LIST_MAX_LIMIT).contains(&limit) {
+        return Err(ApiError::invalid_field(
+            "limit",
+            format!("{limit} is not between 1 and {LIST_MAX_LIMIT}"),
+        ));
+    }
+    if let Some(c) = &query.cursor {
+        if !valid_id(c) {
+            return Err(ApiError::invalid_field(
+                "cursor",
+                "not a cursor: pass the `next_cursor` of the previous page",
+            ));
+        }
+    }
+    let page = state.store.list(limit, query.cursor.as_deref());
+    let link = page
+        .next
+        .as_ref()
+        .map(|c| format!("</v1/datasets?limit={limit}&cursor={c}>; rel=\"next\""));
+    let mut res = Json(DatasetList {
+        items: page.items,
+        next_cursor: page.next,
+    })
+    .into_response();
+    if let Some(v) = link.and_then(|l| HeaderValue::from_str(&l).ok()) {
+        res.headers_mut().insert(header::LINK, v);
+    }
+    Ok(res)
+}
+
 fn check_id(id: &str) -> Result<(), ApiError> {
     if valid_id(id) {
         Ok(())
@@ -471,11 +718,18 @@ fn check_id(id: &str) -> Result<(), ApiError> {
     description = "Stores the raw body as a dataset: a 2D image or a 3D volume. The format comes from `?format=`, \
 else from `Content-Type`, else it is detected from the first bytes (`application/octet-stream`, `application/gzip`). \
 Colour images are converted to grey. NIfTI voxel sizes become the dataset's `spacing` (axis 0 first). \
-The array is stored once as canonical NPY; sizes are checked before anything is allocated.",
+The array is stored once as canonical NPY; sizes are checked before anything is allocated. \
+A browser form works too: `multipart/form-data` with a `file` part (its `Content-Type` names the format) \
+and an optional `format` part (a value of `?format=`). \
+The bytes' magic is checked against the format named: a JPEG sent as `image/png` is a 415 that says so \
+(`this is a JPEG, not a PNG: send Content-Type image/jpeg or omit it`), and against `?format=` a 422; \
+bytes with no recognised magic are left to the decoder named.",
     params(UploadQuery),
     request_body(
-        description = "The file: NPY, PNG, JPEG, TIFF or NIfTI (`.nii` or `.nii.gz`).",
+        description = "The file: NPY, PNG, JPEG, TIFF or NIfTI (`.nii` or `.nii.gz`), or a mesh \
+(OBJ, PLY, OFF, STL); raw, or as the `file` part of a form.",
         content(
+            (UploadForm = "multipart/form-data"),
             (crate::http::openapi::FileBytes = "application/x-npy"),
             (crate::http::openapi::FileBytes = "image/png"),
             (crate::http::openapi::FileBytes = "image/jpeg"),
@@ -501,21 +755,51 @@ The array is stored once as canonical NPY; sizes are checked before anything is 
 pub async fn upload(
     State(state): State<AppState>,
     ApiQuery(query): ApiQuery<UploadQuery>,
-    headers: HeaderMap,
-    ApiBytes(body): ApiBytes,
+    upload: UploadBody,
 ) -> Result<Response, ApiError> {
+    let UploadBody {
+        bytes: body,
+        headers,
+        format: form_format,
+        field,
+    } = upload;
     if body.is_empty() {
-        return Err(ApiError::bad_request("body", "body: the body is empty"));
+        return Err(ApiError::bad_request(
+            field,
+            format!("{field}: the file is empty"),
+        ));
     }
-    if let Some(mesh_format) = mesh_upload_format(query.format, &headers, &body) {
+    let format = match (query.format, form_format) {
+        (Some(q), Some(f)) if q != f => {
+            return Err(ApiError::invalid_field(
+                "format",
+                "`?format=` and the form's `format` part name different formats; give one",
+            ))
+        }
+        (q, f) => q.or(f),
+    };
+    if let Some(mesh_format) = mesh_upload_format(format, &headers, &body) {
         return upload_mesh(state, body, mesh_format).await;
     }
-    let hint = match query.format.map(UploadFormat::split) {
-        Some(Ok(f)) => Some(f),
+    let hint = match format.map(UploadFormat::split) {
+        Some(Ok(f)) => {
+            if let Some(actual) = sniff_mismatch(&body, Some(f)) {
+                return Err(ApiError::invalid_field(
+                    "format",
+                    format!(
+                        "the file is {}, not {}: give format={} or omit it to let the bytes decide",
+                        format_name(actual),
+                        format_name(f),
+                        actual_format_value(actual)
+                    ),
+                ));
+            }
+            Some(f)
+        }
         Some(Err(_)) => None,
         None => format_from_content_type(&headers)?,
     };
-    let decoded = decode_upload(&state, body, hint, "body").await?;
+    let decoded = decode_upload(&state, body, hint, field).await?;
     let meta = state
         .store
         .create(
@@ -661,8 +945,11 @@ parameters) or `json` \
 (`{shape, dtype, data}` with data flat in C order, only up to 65536 cells; else 406). A mesh \
 dataset is offered as `ply` (binary PLY with its vertex properties, the default), `obj`, `json` \
 or `glb` (glTF binary, what web viewers load, with the vertex properties as colours and \
-attributes).",
-    params(DatasetPath, DataQuery),
+attributes); a mesh result's per-vertex values alone as `npy` (1D, one value per vertex, \
+`?property=` picks `distance`, `label` or `value`). OBJ has no place for per-vertex values: a mesh \
+that carries them is refused as `obj` (406, naming `ply`, `npy`, `glb` and `json`) rather than \
+downloaded without them.",
+    params(DatasetPath, DataQuery, MeshValuesQuery),
     responses(
         (status = 200, description = "The array (or the mesh).",
             content(
@@ -685,11 +972,19 @@ pub async fn get_data(
     State(state): State<AppState>,
     ApiPath(path): ApiPath<DatasetPath>,
     ApiQuery(query): ApiQuery<DataQuery>,
+    ApiQuery(mesh_query): ApiQuery<MeshValuesQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     check_id(&path.id)?;
     if state.store.meta(&path.id)?.kind == crate::datasets::DatasetKind::Mesh {
-        return mesh_data(&state, &path.id, query.format, &headers).await;
+        return mesh_data(
+            &state,
+            &path.id,
+            query.format,
+            mesh_query.property,
+            &headers,
+        )
+        .await;
     }
     let format = negotiate(query.format, &headers);
     let store = state.store.clone();
@@ -796,6 +1091,7 @@ async fn mesh_data(
     state: &AppState,
     id: &str,
     query: Option<OutputFormat>,
+    property: Option<MeshProperty>,
     headers: &HeaderMap,
 ) -> Result<Response, ApiError> {
     let format = match query {
@@ -804,6 +1100,7 @@ async fn mesh_data(
             OutputFormat::Json => OutputFormat::Json,
             OutputFormat::Obj => OutputFormat::Obj,
             OutputFormat::Glb => OutputFormat::Glb,
+            OutputFormat::Npy if accepts_npy(headers) => OutputFormat::Npy,
             _ => OutputFormat::Ply,
         },
     };
@@ -812,6 +1109,9 @@ async fn mesh_data(
     let bytes = crate::datasets::blocking(move || store.read_mesh_file_blocking(&id)).await?;
     let (body, media) = match format {
         OutputFormat::Ply => (bytes, "model/ply"),
+        OutputFormat::Npy => tokio::task::spawn_blocking(move || mesh_values_npy(&bytes, property))
+            .await
+            .map_err(ApiError::internal)??,
         OutputFormat::Obj | OutputFormat::Json | OutputFormat::Glb => {
             tokio::task::spawn_blocking(move || -> Result<(Vec<u8>, &'static str), ApiError> {
                 let loaded = read_mesh(&bytes, Some(MeshFormat::Ply), &MeshLimits::default())
@@ -821,10 +1121,18 @@ async fn mesh_data(
                         "obj and json are offered for meshes of at most {MESH_TEXT_MAX_VERTICES} vertices; use ply or glb"
                     )));
                 }
+                let extra = io::mesh::ply::vertex_values(&bytes).unwrap_or_default();
                 if format == OutputFormat::Obj {
+                    let carried = carried_properties(&extra);
+                    if !carried.is_empty() {
+                        return Err(ApiError::not_acceptable(format!(
+                            "this mesh carries per-vertex values ({}) that OBJ cannot hold: \
+                             download ply (the mesh with them), npy (the values alone), glb or json",
+                            carried.join(", ")
+                        )));
+                    }
                     return Ok((write::write_obj(&loaded.mesh), "model/obj"));
                 }
-                let extra = io::mesh::ply::vertex_values(&bytes).unwrap_or_default();
                 let mut props = Vec::new();
                 if let Some(d) = &extra.distance {
                     props.push(write::VertexProperty::F64("distance", d));
@@ -846,9 +1154,77 @@ async fn mesh_data(
         }
         _ => {
             return Err(ApiError::not_acceptable(
-                "a mesh dataset is offered as ply (default), obj, json or glb",
+                "a mesh dataset is offered as ply (default), obj, json, glb, or npy (its per-vertex values)",
             ))
         }
     };
     Ok(([(header::CONTENT_TYPE, media)], body).into_response())
+}
+
+/// True when `Accept` names NPY itself (a mesh's default is PLY).
+fn accepts_npy(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|a| {
+            a.split(',').any(|item| {
+                let essence = item.split(';').next().unwrap_or("").trim();
+                essence.eq_ignore_ascii_case("application/x-npy")
+                    || essence.eq_ignore_ascii_case("application/npy")
+            })
+        })
+}
+
+/// The per-vertex properties a stored mesh carries, in the order
+/// `distance`, `value`, `label`.
+fn carried_properties(values: &io::mesh::ply::VertexValues) -> Vec<&'static str> {
+    let mut carried = Vec::new();
+    if values.distance.is_some() {
+        carried.push("distance");
+    }
+    if values.value.is_some() {
+        carried.push("value");
+    }
+    if values.label.is_some() {
+        carried.push("label");
+    }
+    carried
+}
+
+/// One per-vertex property of a stored mesh as a 1D NPY array (f64
+/// `distance` and `value`, i32 `label`), `property` or else the first it
+/// carries of `distance`, `value`, `label`.
+fn mesh_values_npy(
+    ply: &[u8],
+    property: Option<MeshProperty>,
+) -> Result<(Vec<u8>, &'static str), ApiError> {
+    let values = io::mesh::ply::vertex_values(ply).map_err(ApiError::internal)?;
+    let carried = carried_properties(&values);
+    let Some(first) = carried.first() else {
+        return Err(ApiError::not_acceptable(
+            "this mesh carries no per-vertex values (it was uploaded, not computed): \
+             download it as ply, obj, json or glb",
+        ));
+    };
+    let name = property.map_or(*first, MeshProperty::name);
+    let vector = |v: &Vec<f64>| ArrayData::F64(ndarray::Array1::from(v.clone()).into_dyn());
+    let array = match name {
+        "distance" => values.distance.as_ref().map(vector),
+        "value" => values.value.as_ref().map(vector),
+        _ => values
+            .label
+            .as_ref()
+            .map(|v| ArrayData::I32(ndarray::Array1::from(v.clone()).into_dyn())),
+    };
+    let Some(array) = array else {
+        return Err(ApiError::invalid_field(
+            "property",
+            format!(
+                "this mesh has no '{name}' values; it carries {}",
+                carried.join(", ")
+            ),
+        ));
+    };
+    let bytes = io::encode_npy(&array).map_err(ApiError::internal)?;
+    Ok((bytes, "application/x-npy"))
 }

@@ -126,7 +126,7 @@ pub struct DistanceBody {
     pub file: Option<(bytes::Bytes, Option<Format>)>,
 }
 
-fn multipart_error(e: axum::extract::multipart::MultipartError) -> ApiError {
+pub(super) fn multipart_error(e: axum::extract::multipart::MultipartError) -> ApiError {
     if let Some(p) = crate::http::server::stalled_problem(&e) {
         return p;
     }
