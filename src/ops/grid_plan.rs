@@ -62,7 +62,7 @@ impl Operation for GridPlanRequest {
 
     /// Arrays: `clearance` (f64, distance to the nearest obstacle cell),
     /// `distance` (f64, to the goal in the free space). Document: `{"path":
-    /// [[i, j(, k)], ...], "length", "min_clearance", "radius", "widest_radius"}`.
+    /// [[i, j(, k)], ...] from start to goal, "euclidean_length", "min_clearance", "radius", "widest_radius"}`.
     fn run(
         &self,
         inputs: &dyn Inputs,
@@ -110,7 +110,7 @@ impl Operation for GridPlanRequest {
             ],
             serde_json::json!({
                 "path": p.path,
-                "length": p.length,
+                "euclidean_length": p.length,
                 "min_clearance": p.min_clearance,
                 "radius": self.radius,
                 "widest_radius": p.widest,

@@ -3,6 +3,7 @@
 
 mod common;
 mod connections;
+mod conventions;
 mod errors;
 mod flow;
 mod gradient;
