@@ -129,7 +129,7 @@ fn f64_cost_3d_with_spacing_and_fast_sweeping_matches_the_library() {
             "--spacing",
             "1,0.5,2",
             "--method",
-            "fast-sweeping",
+            "fast_sweeping",
             "--order",
             "1",
             "--out",

@@ -49,7 +49,7 @@ fn every_method_writes_the_library_result() {
         },
     ];
     for (name, method) in [
-        ("fast-marching", MeshMethod::FastMarching),
+        ("fast_marching", MeshMethod::FastMarching),
         ("heat", MeshMethod::Heat),
         ("exact", MeshMethod::Exact),
         ("dijkstra", MeshMethod::Dijkstra),
@@ -106,6 +106,30 @@ fn every_method_writes_the_library_result() {
         );
         assert!(d.iter().all(|x| x.is_finite() && *x < 3.2), "{name}");
     }
+}
+
+#[test]
+fn the_old_method_spelling_is_refused_naming_the_new_one() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, _) = sphere_obj(&dir);
+    let out = dir.path().join("d.npy");
+    let o = geodex(&[
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "0",
+        "--method",
+        "fast-marching",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("`fast-marching` was renamed `fast_marching`"),
+        "{err}"
+    );
+    assert!(!out.exists());
 }
 
 #[test]

@@ -131,7 +131,7 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
         (
             "grid.metric",
             "/v1/grid/metric",
-            json!({"dataset": image, "design": {"kind": "vesselness", "scales": [2.0, 4.0, 8.0]}}),
+            json!({"cost": {"dataset": image, "design": {"kind": "vesselness", "scales": [2.0, 4.0, 8.0]}}}),
         ),
         (
             "grid.paths",
@@ -220,12 +220,12 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
         (
             "grid.tensor_distance",
             "/v1/grid/tensor-distance",
-            json!({"tensor": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),
+            json!({"metric": {"kind": "eigen", "shape": [n, n], "eigenvalues": [1.0, 4.0], "direction": [1.0, 1.0]}, "sources": src}),
         ),
         (
             "grid.tensor_metric",
             "/v1/grid/tensor-metric",
-            json!({"tensor": {"kind": "structure_tensor", "image": image, "sigma": 4.0, "rho": 8.0, "energy": 1.0, "anisotropy": 0.9}}),
+            json!({"metric": {"kind": "structure_tensor", "image": image, "sigma": 4.0, "rho": 8.0, "energy": 1.0, "anisotropy": 0.9}}),
         ),
         (
             "mesh.distance",
@@ -240,7 +240,7 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
         (
             "mesh.paths",
             "/v1/mesh/paths",
-            json!({"mesh": mesh, "sources": [{"vertex": 0}], "targets": [{"vertex": 9}], "method": "exact"}),
+            json!({"mesh": mesh, "sources": [{"vertex": 0}], "ends": [{"vertex": 9}], "method": "exact"}),
         ),
         (
             "mesh.sample",

@@ -100,8 +100,8 @@ pub struct SchemeFlags {
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// The solver.
-    #[arg(long, value_enum, default_value_t = MethodArg::FastMarching)]
+    /// The solver: fast_marching, fast_sweeping or dijkstra.
+    #[arg(long, value_parser = method_value::<MethodArg>, default_value = "fast_marching")]
     pub method: MethodArg,
     /// Order of the finite-difference scheme.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
@@ -182,8 +182,30 @@ fn op_error_as(e: OpError, name: &str) -> DistanceError {
     }
 }
 
+/// A `--method` value, spelled as in the request JSON (`fast_marching`).
+/// The old command-line spellings with a dash (`fast-marching`) are
+/// refused with the new name, as the service refuses them
+/// ([`crate::ops::renamed`]).
+pub(crate) fn method_value<E: ValueEnum>(s: &str) -> Result<E, String> {
+    if let Ok(v) = E::from_str(s, false) {
+        return Ok(v);
+    }
+    let snake = s.replace('-', "_");
+    if E::from_str(&snake, false).is_ok() {
+        return Err(format!(
+            "`{s}` was renamed `{snake}` (see CHANGELOG.md); pass --method {snake}"
+        ));
+    }
+    let names: Vec<String> = E::value_variants()
+        .iter()
+        .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
+        .collect();
+    Err(format!("unknown method `{s}`; one of {}", names.join(", ")))
+}
+
 /// `--method`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[value(rename_all = "snake_case")]
 pub enum MethodArg {
     /// Fast marching.
     FastMarching,

@@ -18,6 +18,7 @@ use std::time::Instant;
 
 use clap::{Args, ValueEnum};
 
+use super::distance::method_value;
 use super::run::{run_operation, CliRunError};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData};
@@ -40,7 +41,7 @@ pub struct MeshDistanceArgs {
     #[arg(long = "source-face", value_name = "F,B0,B1,B2")]
     pub source_faces: Vec<String>,
     /// The method.
-    #[arg(long, value_enum, default_value_t = MeshMethodArg::FastMarching)]
+    #[arg(long, value_parser = method_value::<MeshMethodArg>, default_value = "fast_marching")]
     pub method: MeshMethodArg,
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
@@ -81,11 +82,11 @@ impl LaplacianArg {
     }
 }
 
-/// `--method` values.
+/// `--method` values, spelled as in the request JSON (`fast_marching`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[value(rename_all = "snake_case")]
 pub enum MeshMethodArg {
     /// Kimmel–Sethian fast marching.
-    #[value(name = "fast-marching", alias = "fast_marching")]
     FastMarching,
     /// The heat method.
     Heat,

@@ -860,7 +860,7 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
             println!(
                 "geodex: wrote {} (length {}, {} vertices)",
                 p.display(),
-                out.document["length"],
+                out.document["euclidean_length"],
                 out.document["path"].as_array().map_or(0, Vec::len)
             );
         }

@@ -36,7 +36,7 @@ pub struct DistanceMatrixArgs {
     #[arg(long = "source-vertex", value_name = "V")]
     pub sources: Vec<u32>,
     /// The method.
-    #[arg(long, value_enum, default_value_t = MeshMethodArg::FastMarching)]
+    #[arg(long, value_parser = super::distance::method_value::<MeshMethodArg>, default_value = "fast_marching")]
     pub method: MeshMethodArg,
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
@@ -68,7 +68,7 @@ pub struct EmbedArgs {
     #[arg(long, value_name = "N")]
     pub smacof: Option<usize>,
     /// The method.
-    #[arg(long, value_enum, default_value_t = MeshMethodArg::FastMarching)]
+    #[arg(long, value_parser = super::distance::method_value::<MeshMethodArg>, default_value = "fast_marching")]
     pub method: MeshMethodArg,
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]

@@ -26,7 +26,7 @@ pub struct ApiQuery<T>(pub T);
 #[derive(Debug, Clone)]
 pub struct ApiBytes(pub bytes::Bytes);
 
-impl<T: DeserializeOwned, S: Send + Sync> FromRequest<S> for ApiJson<T> {
+impl<T: DeserializeOwned + 'static, S: Send + Sync> FromRequest<S> for ApiJson<T> {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {

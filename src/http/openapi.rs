@@ -20,9 +20,24 @@ giving the physical size of a cell along each axis.";
         title = "geodex",
         description = "Geodesic distances, minimal paths and segmentations on 2D and 3D grids.\n\n\
 Upload arrays as datasets (`POST /v1/datasets`), run operations on them (`POST /v1/grid/distance`), \
-and download the results in the format you need (`GET /v1/datasets/{id}/data`). \
-Point coordinates are in array index order (axis 0 first), in index units (cell centres are at \
-integer indices), with a separate per-axis `spacing` giving the physical size of a cell along each axis.\n\n\
+and download the results in the format you need (`GET /v1/datasets/{id}/data`).\n\n\
+**Conventions** (the same in every operation, its job and its command):\n\n\
+- **Points** are in array index order (axis 0 first: `[row, column]` on an image), in index units \
+(cell centres at integer indices), with a separate per-axis `spacing` giving the physical size of a \
+cell along each axis. Mesh points are `{\"vertex\": v}` or `{\"face\": f, \"bary\": [b0, b1, b2]}`.\n\
+- **GeoJSON** is the one exception and follows its standard in every GeoJSON answer (`grid.paths` \
+with `format: geojson`, `grid.segment`'s `contours`, `grid.group`'s `geojson`) and input \
+(`domain.mesh`'s `polygons`): positions are `[x, y] = [column, row]`, times the spacing in answers; \
+outer rings turn counter-clockwise.\n\
+- **Paths** run from their source to their end: the first point is the source reached, the last \
+the end point (`grid.paths`, `grid.tensor_distance`, `mesh.paths`; `grid.plan` from `start` to \
+`goal`; `grid.group` links from `pair[0]` to `pair[1]`; skeleton edges from `source` to `target`).\n\
+- **Names**: path end points are `ends` (grids, tensors, meshes); a path's `geodesic_length` is its \
+length in the metric (`∫W`, `∫sqrt(γ'ᵀMγ')`, on a mesh the distance `U` at its end) and its \
+`euclidean_length` that of its polyline; methods are spelled with underscores (`fast_marching`).\n\
+- **Metrics**: an isotropic metric is always the `cost` section (`dataset`, `constant` + `shape`, \
+`interpretation`, `design`), a Riemannian one the `metric` section (a tensor field).\n\
+- Renamed fields and values (listed in CHANGELOG.md) answer 422 naming the new spelling.\n\n\
 Every error is an RFC 9457 `application/problem+json` document naming the offending field.",
         license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0"),
     ),

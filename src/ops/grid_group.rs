@@ -246,7 +246,7 @@ impl Operation for GridGroupRequest {
     /// Arrays: `labels` (int32, the geodesic Voronoi cell of each pixel:
     /// the index of its key point, -1 where not reached), `distance` (f64,
     /// to the nearest key point). Document: `{"links": [{"pair", "saddle",
-    /// "cost", "kept", "path"?, "path_length"?}], "contours": [{"key_points",
+    /// "geodesic_length", "kept", "path"? (from `pair[0]` to `pair[1]`), "euclidean_length"?}], "contours": [{"key_points",
     /// "links", "closed", "branched", "polyline"?}], "isolated": [...],
     /// "geojson": FeatureCollection, "stats": {...}}`.
     fn run(
@@ -295,12 +295,12 @@ impl Operation for GridGroupRequest {
                 let mut v = serde_json::json!({
                     "pair": l.pair,
                     "saddle": l.saddle,
-                    "cost": l.cost,
+                    "geodesic_length": l.cost,
                     "kept": l.kept,
                 });
                 if let (Some(p), Some(len)) = (&l.path, l.path_length) {
                     v["path"] = serde_json::json!(p);
-                    v["path_length"] = serde_json::json!(len);
+                    v["euclidean_length"] = serde_json::json!(len);
                 }
                 v
             })

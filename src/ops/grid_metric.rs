@@ -1,6 +1,8 @@
-//! `grid.metric`: the cost `W` designed from an image or a volume
-//! (intensity, edges, vesselness), returned as a dataset to look at. The
-//! `design` section itself is shared: [`crate::ops::spec::design`].
+//! `grid.metric`: the metric of a `cost` section (most often `W` designed
+//! from an image or a volume: intensity, edges, vesselness) or of a tensor
+//! `metric` section, returned as a dataset to look at. The sections are the
+//! shared ones ([`crate::ops::spec::cost`], [`crate::ops::spec::design`],
+//! [`crate::ops::spec::tensor`]).
 
 use std::time::Instant;
 
@@ -8,30 +10,38 @@ use ndarray::ArrayD;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::spec::cost::{resolve_cost, CostSpec};
 pub use super::spec::design::{
     apply_design, array_to_f64, DesignSpec, EdgeModeSpec, EdgesSpec, IntensitySpec, PolaritySpec,
     VesselnessSpec,
 };
+use super::spec::grid::check_spacing;
+use super::spec::scheme::{check_metric_choice, metric_dataset_ids, ConnectivitySpec, MethodSpec};
+use super::spec::tensor::{per_cell, resolve_tensor, TensorSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray};
 use crate::io::ArrayData;
-use crate::numerics::{Control, Grid};
-use crate::ops::spec::errors::grid_error;
-use crate::ops::spec::grid::check_shape;
-use crate::ops::InputArray;
+use crate::numerics::Control;
 
-/// Request of `grid.metric` (`POST /v1/grid/metric`): the designed cost `W`
-/// of an image, as a dataset (f64, same shape and spacing).
+/// Request of `grid.metric` (`POST /v1/grid/metric`): the metric a `cost`
+/// or `metric` section describes, as a dataset (f64, the grid's shape and
+/// spacing; a tensor field with a trailing axis of 3 or 6 components).
+/// The sections are those of every other operation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({
-    "dataset": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e45",
-    "design": {"kind": "vesselness", "scales": [1.0, 2.0], "polarity": "dark"}
+    "cost": {"dataset": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e45",
+             "design": {"kind": "vesselness", "scales": [1.0, 2.0], "polarity": "dark"}}
 }))]
 pub struct GridMetricRequest {
-    /// Id of the 2D or 3D image.
-    pub dataset: String,
-    /// The design.
-    pub design: DesignSpec,
+    /// The isotropic metric, as in `grid.distance` (an image with a
+    /// `design`, a cost or speed dataset, a constant over a shape). The
+    /// answer is `W` per cell. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostSpec>,
+    /// A Riemannian metric (tensor field), as in `grid.distance`. The answer
+    /// is its components per cell. Give exactly one of `cost` and `metric`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<TensorSpec>,
     /// Physical size of a cell per axis. Default: the dataset's spacing, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(min_items = 2, max_items = 3)]
@@ -41,12 +51,18 @@ pub struct GridMetricRequest {
 /// Statistics of a designed metric.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct MetricStats {
-    /// Smallest `W`.
-    pub min: f64,
-    /// Largest `W`.
-    pub max: f64,
-    /// Mean `W`.
-    pub mean: f64,
+    /// Smallest `W` (a `cost`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min: Option<f64>,
+    /// Largest `W` (a `cost`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max: Option<f64>,
+    /// Mean `W` (a `cost`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean: Option<f64>,
+    /// Largest anisotropy ratio `sqrt(λmax/λmin)` (a tensor `metric`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_anisotropy: Option<f64>,
     /// Seconds spent designing.
     pub design_seconds: f64,
 }
@@ -55,24 +71,22 @@ impl Operation for GridMetricRequest {
     const NAME: &'static str = "grid.metric";
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        let _ = limits;
-        self.design.validate("design")?;
-        if let Some(spacing) = &self.spacing {
-            if let Some(k) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
-                return Err(OpError::invalid(
-                    format!("spacing[{k}]"),
-                    format!("{} must be finite and > 0", spacing[k]),
-                ));
-            }
-        }
-        Ok(())
+        check_metric_choice(
+            self.cost.as_ref(),
+            self.metric.as_ref(),
+            MethodSpec::FastMarching,
+            ConnectivitySpec::default(),
+            limits,
+        )?;
+        check_spacing(&self.spacing)
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        vec![("dataset".into(), self.dataset.clone())]
+        metric_dataset_ids(self.cost.as_ref(), self.metric.as_ref())
     }
 
-    /// Arrays: `metric` (f64, `W`). Document: `{"stats": MetricStats}`.
+    /// Arrays: `metric` (f64: `W`, or the tensor's components). Document:
+    /// `{"stats": MetricStats}`.
     fn run(
         &self,
         inputs: &dyn Inputs,
@@ -80,44 +94,53 @@ impl Operation for GridMetricRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         Operation::validate(self, limits)?;
-        let input: InputArray =
-            inputs
-                .get(&self.dataset)
-                .ok_or_else(|| OpError::UnknownDataset {
-                    field: "dataset".into(),
-                    id: self.dataset.clone(),
-                })?;
-        let shape = input.array.shape().to_vec();
-        check_shape(&shape, "dataset", limits)?;
-        let spacing = self
-            .spacing
-            .clone()
-            .or_else(|| input.spacing.clone())
-            .unwrap_or_else(|| vec![1.0; shape.len()]);
-        let grid = Grid::new(&shape, &spacing).map_err(|e| grid_error(e, &shape))?;
         let started = Instant::now();
-        let w = apply_design(
-            &grid,
-            &input.array,
-            &self.design,
-            "design",
-            "dataset",
-            control,
-        )?;
-        let design_seconds = started.elapsed().as_secs_f64();
-        let (min, max, sum) = w
-            .iter()
-            .fold((f64::INFINITY, 0.0f64, 0.0), |(a, b, s), &v| {
-                (a.min(v), b.max(v), s + v)
-            });
-        let stats = MetricStats {
-            min,
-            max,
-            mean: sum / w.len() as f64,
-            design_seconds,
+        let (shape, spacing, values, stats) = match (&self.cost, &self.metric) {
+            (Some(cost), _) => {
+                let resolved =
+                    resolve_cost(cost, self.spacing.as_deref(), None, inputs, limits, control)?;
+                let w = resolved.cost_values()?;
+                let (min, max, sum) = w
+                    .iter()
+                    .fold((f64::INFINITY, 0.0f64, 0.0), |(a, b, s), &v| {
+                        (a.min(v), b.max(v), s + v)
+                    });
+                let stats = MetricStats {
+                    min: Some(min),
+                    max: Some(max),
+                    mean: Some(sum / w.len() as f64),
+                    max_anisotropy: None,
+                    design_seconds: started.elapsed().as_secs_f64(),
+                };
+                (resolved.grid.shape().to_vec(), resolved.spacing, w, stats)
+            }
+            (None, Some(metric)) => {
+                let resolved = resolve_tensor(
+                    metric,
+                    "metric",
+                    self.spacing.as_deref(),
+                    None,
+                    inputs,
+                    limits,
+                    control,
+                )?;
+                let n = resolved.grid.len();
+                let mut shape = resolved.grid.shape().to_vec();
+                let values = resolved.metric.to_components(n);
+                let stats = MetricStats {
+                    min: None,
+                    max: None,
+                    mean: None,
+                    max_anisotropy: Some(resolved.metric.max_anisotropy(n)),
+                    design_seconds: started.elapsed().as_secs_f64(),
+                };
+                shape.push(per_cell(shape.len()));
+                (shape, resolved.spacing, values, stats)
+            }
+            (None, None) => return Err(OpError::invalid("cost", "missing")),
         };
-        let array = ArrayD::from_shape_vec(ndarray::IxDyn(&shape), w)
-            .map_err(|e| OpError::invalid("dataset", e.to_string()))?;
+        let array = ArrayD::from_shape_vec(ndarray::IxDyn(&shape), values)
+            .map_err(|e| OpError::invalid("cost", e.to_string()))?;
         Ok(OpOutput::new(
             vec![OutputArray {
                 name: "metric".into(),
@@ -132,6 +155,7 @@ impl Operation for GridMetricRequest {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ops::InputArray;
     use std::collections::HashMap;
     use std::sync::Arc;
 
@@ -177,7 +201,7 @@ mod tests {
             },
         );
         let req: GridMetricRequest = serde_json::from_value(serde_json::json!({
-            "dataset": "img", "design": {"kind": "intensity", "value": 250}
+            "cost": {"dataset": "img", "design": {"kind": "intensity", "value": 250}}
         }))
         .unwrap();
         let out = req
@@ -188,12 +212,12 @@ mod tests {
         };
         assert!((w[[0, 0]] - 1.01).abs() < 1e-12 && (w[[1, 2]] - 0.01).abs() < 1e-12);
         let req: GridMetricRequest = serde_json::from_value(serde_json::json!({
-            "dataset": "img", "design": {"kind": "intensity", "at": [5.0, 0.0]}
+            "cost": {"dataset": "img", "design": {"kind": "intensity", "at": [5.0, 0.0]}}
         }))
         .unwrap();
         let err = req
             .run(&inputs, &OpLimits::default(), &Control::new())
             .unwrap_err();
-        assert_eq!(err.field(), Some("design.at"));
+        assert_eq!(err.field(), Some("cost.design.at"));
     }
 }

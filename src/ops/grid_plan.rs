@@ -65,7 +65,7 @@ impl Operation for GridPlanRequest {
     /// Arrays: `clearance` (f64, distance to the nearest obstacle cell),
     /// `distance` (f64, to the goal in the free space), in 2D `picture` (u8
     /// RGB, see [`plan_picture`]). Document: `{"path":
-    /// [[i, j(, k)], ...], "length", "min_clearance", "radius", "widest_radius"}`.
+    /// [[i, j(, k)], ...] from start to goal, "euclidean_length", "min_clearance", "radius", "widest_radius"}`.
     fn run(
         &self,
         inputs: &dyn Inputs,
@@ -134,7 +134,7 @@ impl Operation for GridPlanRequest {
             .collect(),
             serde_json::json!({
                 "path": p.path,
-                "length": p.length,
+                "euclidean_length": p.length,
                 "min_clearance": p.min_clearance,
                 "radius": self.radius,
                 "widest_radius": p.widest,

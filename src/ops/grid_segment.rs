@@ -177,14 +177,18 @@ fn rename_source_field(e: OpError, origin: &[String]) -> OpError {
     }
 }
 
-/// The polygons (rings of `[axis 0, axis 1]` vertices) and the cell count of one label.
+/// The polygons (GeoJSON rings of `[x, y]` vertices) and the cell count of one label.
 type LabelPolygons = (Vec<Vec<Vec<[f64; 2]>>>, usize);
 
 /// A GeoJSON FeatureCollection with one MultiPolygon per label of a 2D label
-/// map (`-1`, unreached, is left out). Positions are `[axis 0, axis 1]` in index units.
+/// map (`-1`, unreached, is left out). Positions follow GeoJSON, as every
+/// GeoJSON answer: `[x, y] = [column × spacing[1], row × spacing[0]]` (cell
+/// `(i, j)` is the square of corners `(i ± 1/2, j ± 1/2)`); outer rings
+/// turn counter-clockwise in that plane and holes clockwise (RFC 7946).
 pub fn label_contours(
     labels: &[i32],
     shape: [usize; 2],
+    spacing: [f64; 2],
     control: &Control<'_>,
 ) -> Result<serde_json::Value, OpError> {
     let l64: Vec<i64> = labels.iter().map(|&v| i64::from(v)).collect();
@@ -205,7 +209,19 @@ pub fn label_contours(
     let mut by_label: BTreeMap<i64, LabelPolygons> = BTreeMap::new();
     for p in polys {
         let e = by_label.entry(p.label).or_default();
-        e.0.push(p.rings);
+        // The core's rings are in index order (axis 0, axis 1); swapping the
+        // axes mirrors the plane, so each ring is also reversed to keep its turn.
+        let rings = p
+            .rings
+            .iter()
+            .map(|ring| {
+                ring.iter()
+                    .rev()
+                    .map(|v| [v[1] * spacing[1], v[0] * spacing[0]])
+                    .collect()
+            })
+            .collect();
+        e.0.push(rings);
         e.1 += p.cells;
     }
     let features: Vec<serde_json::Value> = by_label
@@ -408,7 +424,14 @@ impl Operation for GridSegmentRequest {
             stats.push(serde_json::json!({"label": label, "cells": cells, "seeds": seeds}));
         }
         let contours = (self.contours && ndim == 2)
-            .then(|| label_contours(&v.labels, [shape[0], shape[1]], control))
+            .then(|| {
+                label_contours(
+                    &v.labels,
+                    [shape[0], shape[1]],
+                    [spacing[0], spacing[1]],
+                    control,
+                )
+            })
             .transpose()?;
         let confidence = v.confidence();
         let sp = Some(spacing);

@@ -183,8 +183,8 @@ pub fn skeleton_picture(
 }
 
 /// The skeleton graph as the API gives it: `{"nodes": [{"id", "point",
-/// "radius", "degree"}], "edges": [{"source", "target", "points", "radius",
-/// "length"}]}`, the fields in this order (the numerical core does not
+/// "radius", "degree"}], "edges": [{"source", "target", "points" (from the
+/// source node to the target node), "radius", "euclidean_length"}]}`, the fields in this order (the numerical core does not
 /// depend on serde, so the JSON shape is written here).
 fn graph_json(g: &SkeletonGraph) -> serde_json::Value {
     let nodes: Vec<serde_json::Value> = g
@@ -208,7 +208,7 @@ fn graph_json(g: &SkeletonGraph) -> serde_json::Value {
                 "target": e.target,
                 "points": e.points,
                 "radius": e.radius,
-                "length": e.length,
+                "euclidean_length": e.length,
             })
         })
         .collect();

@@ -3,7 +3,7 @@
 //!
 //! The same solve as `grid.distance` with a `metric` (both go through
 //! [`super::spec::tensor::resolve_tensor`] and [`super::spec::tensor::solve_tensor`]),
-//! kept as its own endpoint with the stencil statistics and start-to-source
+//! kept as its own endpoint with the stencil statistics and source-to-end
 //! paths; the paths are the shared descent of [`crate::numerics::paths`]
 //! with the Riemannian direction ([`crate::numerics::anisotropic::descent`]).
 //!
@@ -33,13 +33,13 @@ use crate::ops::spec::distance::GridDistanceRequest;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({
-    "tensor": {"kind": "eigen", "shape": [256, 256], "eigenvalues": [1.0, 100.0], "direction": [1.0, 1.0]},
+    "metric": {"kind": "eigen", "shape": [256, 256], "eigenvalues": [1.0, 100.0], "direction": [1.0, 1.0]},
     "sources": [{"point": [128.0, 128.0]}],
-    "paths": [[20.0, 200.0]]
+    "ends": [[20.0, 200.0]]
 }))]
 pub struct GridTensorDistanceRequest {
-    /// The metric tensor field.
-    pub tensor: TensorSpec,
+    /// The metric tensor field (the `metric` section of `grid.distance`).
+    pub metric: TensorSpec,
     /// Physical size of a cell along each axis (axis 0 first). Default: the
     /// spacing stored with the tensor's dataset, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -65,13 +65,13 @@ pub struct GridTensorDistanceRequest {
     /// Which arrays to return besides the distance.
     #[serde(default)]
     pub outputs: OutputSpec,
-    /// Start points (index coordinates) of minimal paths to the nearest
+    /// End points (index coordinates) of minimal paths from the nearest
     /// source, traced along `−M⁻¹∇U`. Default: none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub paths: Vec<Vec<f64>>,
+    pub ends: Vec<Vec<f64>>,
     /// Step of the path descent, in cells (steps above 0.5 are taken as 0.5). Default: 0.5.
     #[serde(default = "default_step")]
-    pub path_step: f64,
+    pub step: f64,
 }
 
 /// Statistics of an anisotropic solve.
@@ -94,19 +94,23 @@ pub struct TensorSolveStats {
 /// A minimal path.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct TensorPath {
-    /// Points from the start to the source, index coordinates.
+    /// Position of its end point in `ends`.
+    pub index: usize,
+    /// Index of the source reached (in `sources`).
+    pub source: usize,
+    /// The end point, as given.
+    pub end: Vec<f64>,
+    /// Points from the source to the end, index coordinates (axis 0 first).
     pub points: Vec<Vec<f64>>,
-    /// Riemannian length of the polyline.
-    pub length: f64,
-    /// Distance map value at the start.
-    pub distance: f64,
-    /// True when the descent ended at a source.
-    pub reached_source: bool,
+    /// Riemannian length of the polyline, `∫ sqrt(γ'ᵀ M γ')`, physical units.
+    pub geodesic_length: f64,
+    /// Physical length of the polyline.
+    pub euclidean_length: f64,
 }
 
 impl GridTensorDistanceRequest {
     fn check(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.tensor.validate("tensor", limits)?;
+        self.metric.validate("metric", limits)?;
         let probe = GridDistanceRequest {
             cost: Some(CostSpec {
                 dataset: None,
@@ -135,24 +139,27 @@ impl GridTensorDistanceRequest {
             ));
         }
         probe.validate(limits)?;
-        if !(self.path_step.is_finite() && self.path_step > 0.0) {
+        if !(self.step.is_finite() && self.step > 0.0) {
             return Err(OpError::invalid(
-                "path_step",
-                format!("{} must be finite and > 0", self.path_step),
+                "step",
+                format!("{} must be finite and > 0", self.step),
             ));
         }
-        for (i, p) in self.paths.iter().enumerate() {
+        for (i, p) in self.ends.iter().enumerate() {
             if let Some(k) = p.iter().position(|v| !v.is_finite()) {
                 return Err(OpError::invalid(
-                    format!("paths[{i}][{k}]"),
+                    format!("ends[{i}][{k}]"),
                     "coordinates must be finite",
                 ));
             }
         }
-        if self.paths.len() > 10_000 {
+        if self.ends.len() > 10_000 {
             return Err(OpError::TooLarge {
-                field: "paths".into(),
-                reason: format!("{} paths, more than the limit of 10000", self.paths.len()),
+                field: "ends".into(),
+                reason: format!(
+                    "{} end points, more than the limit of 10000",
+                    self.ends.len()
+                ),
             });
         }
         Ok(())
@@ -167,7 +174,7 @@ impl Operation for GridTensorDistanceRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = self.tensor.dataset_ids("tensor");
+        let mut ids = self.metric.dataset_ids("metric");
         if let Some(id) = &self.obstacles {
             ids.push(("obstacles".into(), id.clone()));
         }
@@ -186,8 +193,8 @@ impl Operation for GridTensorDistanceRequest {
     ) -> Result<OpOutput, OpError> {
         self.check(limits)?;
         let resolved = resolve_tensor(
-            &self.tensor,
-            "tensor",
+            &self.metric,
+            "metric",
             self.spacing.as_deref(),
             self.obstacles.as_deref(),
             inputs,
@@ -196,7 +203,7 @@ impl Operation for GridTensorDistanceRequest {
         )?;
         // Masks are cells at 0; walls are the tensor's own (a mask cell on one is refused there).
         let unit =
-            IsotropicCost::constant(1.0).map_err(|e| OpError::invalid("tensor", e.to_string()))?;
+            IsotropicCost::constant(1.0).map_err(|e| OpError::invalid("metric", e.to_string()))?;
         let sources: Vec<Source> =
             resolve_sources(&self.sources, &resolved.grid, &unit, inputs, control)?;
         let (problem, spacing) = resolved.into_problem(sources);
@@ -206,20 +213,20 @@ impl Operation for GridTensorDistanceRequest {
             stop: self.stop.rules(),
             record_order: self.outputs.frozen_order,
         };
-        let solved = solve_tensor(&problem, &spec, "tensor", control)?;
+        let solved = solve_tensor(&problem, &spec, "metric", control)?;
         let (out, solve_seconds) = (solved.out, solved.seconds);
         let flat: Vec<f64> = out.output.distance.iter().copied().collect();
-        let mut paths = Vec::with_capacity(self.paths.len());
+        let mut paths = Vec::with_capacity(self.ends.len());
         // The shared descent of numerics::paths takes steps of at most half a cell.
         let descent = DescentOptions {
-            step: self.path_step.min(0.5),
+            step: self.step.min(0.5),
             ..DescentOptions::default()
         };
-        for (i, p) in self.paths.iter().enumerate() {
+        for (i, p) in self.ends.iter().enumerate() {
             if control.is_cancelled() {
                 return Err(OpError::Cancelled);
             }
-            let field = format!("paths[{i}]");
+            let field = format!("ends[{i}]");
             let path = minimal_path(
                 &problem.grid,
                 &problem.metric,
@@ -228,22 +235,15 @@ impl Operation for GridTensorDistanceRequest {
                 p,
                 &descent,
             )
-            .map_err(|e| OpError::invalid(field.clone(), e.to_string()))?;
-            let p3 = problem
-                .grid
-                .point3(p)
-                .map_err(|e| OpError::invalid(field, e.to_string()))?;
-            let start = flat[problem
-                .grid
-                .linear(crate::numerics::eikonal::nearest_cell(&problem.grid, p3))];
-            // Ordered from the start point to the source, as this operation always answered.
-            let mut points = path.index_points(&problem.grid);
-            points.reverse();
+            .map_err(|e| OpError::invalid(field, e.to_string()))?;
+            // The descent's vertices run from the source to the end, as every path answers.
             paths.push(TensorPath {
-                points,
-                length: path.geodesic_length,
-                distance: start,
-                reached_source: true,
+                index: i,
+                source: path.source,
+                end: p.clone(),
+                points: path.index_points(&problem.grid),
+                geodesic_length: path.geodesic_length,
+                euclidean_length: path.euclidean_length,
             });
         }
         let stats = TensorSolveStats {

@@ -15,11 +15,11 @@ use crate::numerics::{Control, Grid};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 #[schema(example = json!({
-    "tensor": {"kind": "energy_anisotropy", "shape": [64, 64], "energy": 1.0, "anisotropy": 0.9, "angle": 0.5}
+    "metric": {"kind": "energy_anisotropy", "shape": [64, 64], "energy": 1.0, "anisotropy": 0.9, "angle": 0.5}
 }))]
 pub struct GridTensorMetricRequest {
-    /// The metric tensor field.
-    pub tensor: TensorSpec,
+    /// The metric tensor field (the `metric` section of `grid.distance`).
+    pub metric: TensorSpec,
     /// Physical size of a cell along each axis (used by the designs that
     /// differentiate or smooth). Default: the spacing of the input dataset, else 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -31,7 +31,7 @@ impl Operation for GridTensorMetricRequest {
     const NAME: &'static str = "grid.tensor_metric";
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        self.tensor.validate("tensor", limits)?;
+        self.metric.validate("metric", limits)?;
         if let Some(spacing) = &self.spacing {
             if let Some(k) = spacing.iter().position(|h| !(h.is_finite() && *h > 0.0)) {
                 return Err(OpError::invalid(
@@ -44,7 +44,7 @@ impl Operation for GridTensorMetricRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        self.tensor.dataset_ids("tensor")
+        self.metric.dataset_ids("metric")
     }
 
     /// Arrays: `tensor` (f64, the grid shape plus a trailing axis of 3 or 6).
@@ -56,15 +56,15 @@ impl Operation for GridTensorMetricRequest {
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError> {
         self.validate(limits)?;
-        let shape = self.tensor.shape(inputs, "tensor", limits)?;
+        let shape = self.metric.shape(inputs, "metric", limits)?;
         let spacing = self
             .spacing
             .clone()
-            .or_else(|| self.tensor.dataset_spacing(inputs))
+            .or_else(|| self.metric.dataset_spacing(inputs))
             .unwrap_or_else(|| vec![1.0; shape.len()]);
         let grid =
             Grid::new(&shape, &spacing).map_err(|e| OpError::invalid("spacing", e.to_string()))?;
-        let field = self.tensor.build(&grid, inputs, "tensor", control)?;
+        let field = self.metric.build(&grid, inputs, "metric", control)?;
         if control.is_cancelled() {
             return Err(OpError::Cancelled);
         }
@@ -72,7 +72,7 @@ impl Operation for GridTensorMetricRequest {
         let mut full = shape.clone();
         full.push(per_cell(shape.len()));
         let array = ArrayD::from_shape_vec(IxDyn(&full), values)
-            .map_err(|e| OpError::invalid("tensor", e.to_string()))?;
+            .map_err(|e| OpError::invalid("metric", e.to_string()))?;
         Ok(OpOutput::new(
             vec![OutputArray {
                 name: "tensor".into(),

@@ -1,5 +1,6 @@
-//! `mesh.paths`: geodesic paths from target points to the nearest source,
-//! as 3D polylines with the vertex, edge or face of every point.
+//! `mesh.paths`: geodesic paths from the nearest source to each end point,
+//! as 3D polylines with the vertex, edge or face of every point (traced from
+//! the end down the distance field, answered from the source to the end).
 
 use std::time::Instant;
 
@@ -22,7 +23,7 @@ use crate::numerics::Control;
 #[schema(example = json!({
     "mesh": "ds_0192f1b27c1e7d3a9d553c0f2b8a1e44",
     "sources": [{"vertex": 0}],
-    "targets": [{"vertex": 500}, {"face": 40, "bary": [0.3, 0.3, 0.4]}]
+    "ends": [{"vertex": 500}, {"face": 40, "bary": [0.3, 0.3, 0.4]}]
 }))]
 pub struct MeshPathsRequest {
     /// Id of the mesh dataset.
@@ -30,9 +31,9 @@ pub struct MeshPathsRequest {
     /// The sources.
     #[schema(min_items = 1)]
     pub sources: Vec<MeshPointSpec>,
-    /// The points to trace from; each path ends at its nearest source.
+    /// The end points; each path runs from its nearest source to its end.
     #[schema(min_items = 1)]
-    pub targets: Vec<MeshPointSpec>,
+    pub ends: Vec<MeshPointSpec>,
     /// The method. `exact` backtracks the exact method's windows: each path
     /// is a shortest path (straight in every face and across every edge
     /// once unfolded) whose length equals the exact distance; the other
@@ -63,15 +64,16 @@ pub struct PathPointOut {
 /// One path.
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct PathOut {
-    /// Index of the target.
-    pub target: usize,
+    /// Position of its end point in `ends`.
+    pub index: usize,
     /// Index of the source reached (`null` if the descent stopped short).
     pub source: Option<usize>,
-    /// Length of the polyline.
-    pub length: f64,
-    /// Distance of the target in the field that was descended.
-    pub distance: f64,
-    /// The polyline, from the target to the source.
+    /// The geodesic distance `U` of the end point in the field that was
+    /// descended (with `exact`, the polyline's length).
+    pub geodesic_length: f64,
+    /// Length of the polyline in 3D.
+    pub euclidean_length: f64,
+    /// The polyline, from the source to the end point.
     pub points: Vec<PathPointOut>,
 }
 
@@ -80,17 +82,17 @@ impl Operation for MeshPathsRequest {
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
         validate_common(&self.sources, None, &self.heat, limits)?;
-        if self.targets.is_empty() {
-            return Err(OpError::invalid("targets", "at least one target is needed"));
+        if self.ends.is_empty() {
+            return Err(OpError::invalid("ends", "at least one end point is needed"));
         }
-        if self.targets.len() > limits.max_sources {
+        if self.ends.len() > limits.max_sources {
             return Err(OpError::TooLarge {
-                field: "targets".into(),
-                reason: format!("more than {} targets", limits.max_sources),
+                field: "ends".into(),
+                reason: format!("more than {} end points", limits.max_sources),
             });
         }
-        for (i, t) in self.targets.iter().enumerate() {
-            t.to_point(&format!("targets[{i}]"))?;
+        for (i, t) in self.ends.iter().enumerate() {
+            t.to_point(&format!("ends[{i}]"))?;
         }
         Ok(())
     }
@@ -108,14 +110,14 @@ impl Operation for MeshPathsRequest {
         self.validate(limits)?;
         let sources = validate_common(&self.sources, None, &self.heat, limits)?;
         let targets = self
-            .targets
+            .ends
             .iter()
             .enumerate()
-            .map(|(i, t)| t.to_point(&format!("targets[{i}]")))
+            .map(|(i, t)| t.to_point(&format!("ends[{i}]")))
             .collect::<Result<Vec<_>, _>>()?;
         let input = get_mesh(inputs, "mesh", &self.mesh)?;
         check_points(&input.mesh, &sources, "sources")?;
-        check_points(&input.mesh, &targets, "targets")?;
+        check_points(&input.mesh, &targets, "ends")?;
         let started = Instant::now();
         let method: MeshMethod = self.method.into();
         // The exact method backtracks its windows: exact paths. The others
@@ -148,7 +150,7 @@ impl Operation for MeshPathsRequest {
                 Some(p) => p,
                 None => trace_path(&input.mesh, &input.topology, &d.distance, &sources, *t),
             }
-            .map_err(|e| OpError::invalid(format!("targets[{i}]"), e.to_string()))?;
+            .map_err(|e| OpError::invalid(format!("ends[{i}]"), e.to_string()))?;
             let distance = match *t {
                 SurfacePoint::Vertex(v) => d.distance[v as usize],
                 // The exact distance of a point inside a face is the length
@@ -160,13 +162,15 @@ impl Operation for MeshPathsRequest {
                 }
             };
             paths.push(PathOut {
-                target: i,
+                index: i,
                 source: path.source,
-                length: path.length,
-                distance,
+                geodesic_length: distance,
+                euclidean_length: path.length,
+                // The core traces from the end down to the source.
                 points: path
                     .points
                     .iter()
+                    .rev()
                     .map(|p| {
                         let mut o = PathPointOut {
                             position: p.position,

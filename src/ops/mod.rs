@@ -53,6 +53,7 @@ pub mod mesh_voronoi;
 pub mod parse;
 pub mod points_isomap;
 pub mod registry;
+pub mod renamed;
 pub mod spec;
 
 use std::sync::Arc;

@@ -32,7 +32,11 @@ pub enum ParseError {
 /// let err = parse_json::<GridDistanceRequest>(br#"{"sources": [{"pt": [1, 2]}]}"#).unwrap_err();
 /// assert!(matches!(err, ParseError::Data { ref field, .. } if field == "sources[0].pt"));
 /// ```
-pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ParseError> {
+///
+/// When `T` is an operation's request and the body holds a spelling that
+/// was renamed ([`crate::ops::renamed::RENAMED`]), the error names the old
+/// field and says its new name.
+pub fn parse_json<T: DeserializeOwned + 'static>(bytes: &[u8]) -> Result<T, ParseError> {
     let mut de = serde_json::Deserializer::from_slice(bytes);
     let value: T = match serde_path_to_error::deserialize(&mut de) {
         Ok(v) => v,
@@ -40,8 +44,13 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ParseError> {
             let text = err.to_string();
             return Err(match err.inner().classify() {
                 serde_json::error::Category::Data => {
-                    let (field, reason) = field_and_reason(&text);
-                    ParseError::Data { field, reason }
+                    match crate::ops::renamed::explain(std::any::TypeId::of::<T>(), bytes) {
+                        Some(renamed) => renamed,
+                        None => {
+                            let (field, reason) = field_and_reason(&text);
+                            ParseError::Data { field, reason }
+                        }
+                    }
                 }
                 _ => ParseError::Syntax(text),
             });

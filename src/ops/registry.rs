@@ -21,6 +21,9 @@ pub struct Entry {
     pub name: &'static str,
     /// Parses a request of this operation from JSON.
     pub parse: ParseFn,
+    /// The request type's id (how the parser finds an operation's renamed
+    /// fields, [`super::renamed`]).
+    pub type_id: fn() -> std::any::TypeId,
 }
 
 /// A validated request.
@@ -81,6 +84,7 @@ pub const fn entry<O: Operation + std::fmt::Debug>() -> Entry {
     Entry {
         name: O::NAME,
         parse: parse::<O>,
+        type_id: std::any::TypeId::of::<O>,
     }
 }
 

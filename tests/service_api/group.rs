@@ -60,7 +60,7 @@ async fn group_finds_a_closed_and_an_open_contour() {
         .find(|l| l["pair"] == json!([9, 10]))
         .expect("link 9-10");
     assert_eq!(l["kept"], true);
-    let cost = l["cost"].as_f64().expect("cost");
+    let cost = l["geodesic_length"].as_f64().expect("geodesic_length");
     assert!((cost - 0.7).abs() < 0.02, "{l}");
     let s = &l["saddle"];
     assert!((s[1].as_f64().expect("x") - 31.0).abs() <= 1.0, "{l}");

@@ -4,6 +4,7 @@
 mod common;
 mod connections;
 mod datasets;
+mod conventions;
 mod errors;
 mod flow;
 mod gradient;

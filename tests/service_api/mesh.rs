@@ -59,7 +59,6 @@ async fn mesh_upload_distance_download() {
 
     for (method, tol) in [
         ("fast_marching", 0.08),
-        ("fast-marching", 0.08),
         ("heat", 0.08),
         ("exact", 0.05),
         ("dijkstra", 0.2),
@@ -177,7 +176,7 @@ async fn mesh_upload_distance_download() {
     let p: serde_json::Value = post(
         &app,
         "/v1/mesh/paths",
-        json!({"mesh": id, "sources": [{"vertex": 0}], "targets": [{"vertex": 300}]}),
+        json!({"mesh": id, "sources": [{"vertex": 0}], "ends": [{"vertex": 300}]}),
     )
     .await
     .json()
@@ -192,7 +191,7 @@ async fn mesh_upload_distance_download() {
     let p: serde_json::Value = post(
         &app,
         "/v1/mesh/paths",
-        json!({"mesh": id, "sources": [{"vertex": 0}], "targets": [{"vertex": 300}, {"face": 7, "bary": [0.2, 0.3, 0.5]}], "method": "exact"}),
+        json!({"mesh": id, "sources": [{"vertex": 0}], "ends": [{"vertex": 300}, {"face": 7, "bary": [0.2, 0.3, 0.5]}], "method": "exact"}),
     )
     .await
     .json()
@@ -200,8 +199,8 @@ async fn mesh_upload_distance_download() {
     .unwrap();
     for path in p["paths"].as_array().unwrap() {
         let (length, distance) = (
-            path["length"].as_f64().unwrap(),
-            path["distance"].as_f64().unwrap(),
+            path["euclidean_length"].as_f64().unwrap(),
+            path["geodesic_length"].as_f64().unwrap(),
         );
         assert!((length - distance).abs() < 1e-9 * distance, "{path}");
         assert!(path["points"].as_array().unwrap().len() >= 3, "{path}");

@@ -89,7 +89,7 @@ async fn designed_metrics_steer_paths_and_come_back_as_datasets() {
     let res = post(
         &app,
         "/v1/grid/metric",
-        &json!({"dataset": id, "design": {"kind": "intensity", "at": [15.0, 3.0]}}),
+        &json!({"cost": {"dataset": id, "design": {"kind": "intensity", "at": [15.0, 3.0]}}}),
     )
     .await;
     assert_eq!(res.status(), 200);
@@ -199,22 +199,22 @@ async fn bad_path_requests_are_4xx_naming_the_field() {
         post(
             &app,
             "/v1/grid/metric",
-            &json!({"dataset": id, "design": {"kind": "vesselness", "scales": []}}),
+            &json!({"cost": {"dataset": id, "design": {"kind": "vesselness", "scales": []}}}),
         )
         .await,
         422,
     )
     .await;
-    assert_eq!(v["field"], "design.scales");
+    assert_eq!(v["field"], "cost.design.scales");
     let v = problem(
         post(
             &app,
             "/v1/grid/metric",
-            &json!({"dataset": "ds_nope", "design": {"kind": "edges"}}),
+            &json!({"cost": {"dataset": "ds_nope", "design": {"kind": "edges"}}}),
         )
         .await,
         404,
     )
     .await;
-    assert_eq!(v["field"], "dataset");
+    assert_eq!(v["field"], "cost.dataset");
 }

@@ -132,7 +132,7 @@ window.GX = window.GX || {};
       return;
     }
     const m = metricSection().cost;
-    const r = await GX.api("POST", "/v1/grid/metric", { json: { dataset: m.dataset, design: m.design } });
+    const r = await GX.api("POST", "/v1/grid/metric", { json: { cost: m } });
     await setImg($("base"), r.metric.data_url + "?format=png&colorbar=false");
     GX.status(`metric ${kind}: ${r.stats ? JSON.stringify(r.stats) : ""}`);
   }
@@ -391,9 +391,9 @@ window.GX = window.GX || {};
         svg.innerHTML = "";
         const features = (r.contours && r.contours.features) || [];
         for (const f of features) {
-          // Rings of [axis 0, axis 1] cell corners (see numerics::contours).
+          // GeoJSON rings: [x, y] = [column, row] of cell corners (spacing 1 here).
           let d = "";
-          for (const poly of f.geometry.coordinates) for (const ring of poly) d += "M" + ring.map(([a, b]) => (b + 0.5).toFixed(1) + "," + (a + 0.5).toFixed(1)).join("L") + "Z";
+          for (const poly of f.geometry.coordinates) for (const ring of poly) d += "M" + ring.map(([x, y]) => (x + 0.5).toFixed(1) + "," + (y + 0.5).toFixed(1)).join("L") + "Z";
           svgEl("path", { d, class: "region", "data-label": f.properties.label, stroke: LABEL_COLOURS[(f.properties.label - 1) % 8] });
         }
         S.seeds.forEach((s) => marker(s.point, "seed", LABEL_COLOURS[(s.label - 1) % 8]));

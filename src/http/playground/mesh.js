@@ -73,7 +73,7 @@ window.GX = window.GX || {};
 
   async function pathTo(target) {
     const method = $("mesh-method").value;
-    const r = await GX.api("POST", "/v1/mesh/paths", { json: { mesh: M.id, sources: [M.source], targets: [target], method } });
+    const r = await GX.api("POST", "/v1/mesh/paths", { json: { mesh: M.id, sources: [M.source], ends: [target], method } });
     const p = r.paths[0];
     M.viewer.clearLines();
     // Points on edges are sparse on a coarse mesh: add 8 steps per segment so the dots read as a line.
@@ -83,7 +83,7 @@ window.GX = window.GX || {};
     if (q.length) dense.push(q[q.length - 1]);
     M.viewer.addLine(dense, [1, 0.23, 0.19]);
     GX.meshPath = p;
-    GX.status(`path: ${p.points.length} points, length ${p.length.toPrecision(4)} (distance ${p.distance.toPrecision(4)})`);
+    GX.status(`path: ${p.points.length} points, geodesic length ${p.geodesic_length.toPrecision(4)} (polyline ${p.euclidean_length.toPrecision(4)})`);
   }
 
   async function sample() {

@@ -20,10 +20,10 @@ use crate::problem::ApiError;
 pub struct GroupResponse {
     /// Every pair of key points whose geodesic Voronoi cells touch: `pair`
     /// (the two key points, smaller first), `saddle` (index coordinates
-    /// `[row, column]` of the point where their fronts meet), `cost` (`U_i +
-    /// U_j` there: the geodesic distance between them), `kept`, and for a
+    /// `[row, column]` of the point where their fronts meet), `geodesic_length`
+    /// (`U_i + U_j` there: the geodesic distance between them), `kept`, and for a
     /// kept link `path` (the minimal path from `pair[0]` through the saddle
-    /// to `pair[1]`, index coordinates) and `path_length`.
+    /// to `pair[1]`, index coordinates) and `euclidean_length` (its polyline's length).
     pub links: Vec<serde_json::Value>,
     /// The connected components of the kept links: `key_points` (in chain
     /// order), `links` (indices into `links`), `closed`, `branched` (a point

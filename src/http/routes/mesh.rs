@@ -66,8 +66,7 @@ async fn run_mesh_op<O: Operation + std::fmt::Debug>(
     tag = "mesh",
     summary = "Geodesic distance on a triangle mesh",
     description = "Distance from sources at vertices or inside faces (`{\"vertex\": i}` or \
-`{\"face\": f, \"bary\": [b0, b1, b2]}`) over a mesh dataset, with `method` `fast_marching` (default; \
-`fast-marching` accepted), `heat` (factorisation cached per dataset and `heat.m`: later queries cost two solves), \
+`{\"face\": f, \"bary\": [b0, b1, b2]}`) over a mesh dataset, with `method` `fast_marching` (default), `heat` (factorisation cached per dataset and `heat.m`: later queries cost two solves), \
 `exact` or `dijkstra`. The result is a new mesh dataset (PLY) with per-vertex `distance` (+inf where unreached: \
 other components, beyond `max_distance`) and `label` (index of the nearest source, -1 where unreached).",
     request_body(content((MeshDistanceRequest = "application/json"))),
@@ -126,8 +125,10 @@ pub async fn voronoi(
     path = "/v1/mesh/paths",
     tag = "mesh",
     summary = "Geodesic paths on a triangle mesh",
-    description = "Paths from each target to its nearest source by steepest descent of the distance field \
-across faces: 3D polylines whose points name their `vertex`, `edge` or `face`.",
+    description = "A path from the nearest source to each point of `ends`, by steepest descent of the distance \
+field across faces (or, with `method: exact`, backtracked through the exact windows): 3D polylines from the \
+source to the end whose points name their `vertex`, `edge` or `face`, with `geodesic_length` (the distance at \
+the end) and `euclidean_length` (the polyline's length).",
     request_body(content((MeshPathsRequest = "application/json"))),
     responses(
         (status = 200, description = "The paths.", body = MeshResponse),

@@ -1,5 +1,6 @@
-//! `POST /v1/grid/metric`: the cost `W` designed from an image (intensity,
-//! edges, vesselness), stored as a dataset to look at before using it.
+//! `POST /v1/grid/metric`: the metric of a `cost` section (most often `W`
+//! designed from an image: intensity, edges, vesselness) or of a tensor
+//! `metric` section, stored as a dataset to look at before using it.
 
 use std::time::Instant;
 
@@ -18,9 +19,10 @@ use crate::problem::ApiError;
 /// Answer of `POST /v1/grid/metric`.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct MetricResponse {
-    /// The cost `W` (f64, same shape and spacing as the image).
+    /// The cost `W` (f64, the grid's shape and spacing), or the tensor
+    /// field's components (a trailing axis of 3 or 6).
     pub metric: DatasetRef,
-    /// Range of `W` and the design time.
+    /// Range of `W` (or the largest anisotropy of a tensor) and the design time.
     pub stats: MetricStats,
 }
 
@@ -30,7 +32,9 @@ pub struct MetricResponse {
     path = "/v1/grid/metric",
     tag = "grid",
     summary = "Cost W designed from an image (intensity, edges, vesselness)",
-    description = "Builds the cost per unit length `W` from a 2D or 3D image and stores it as a dataset. \
+    description = "Builds the cost per unit length `W` of a `cost` section (the one every grid operation takes; \
+most often an image with a `design`: `{\"cost\": {\"dataset\": IMAGE, \"design\": {...}}}`), or the tensor \
+field of a `metric` section, and stores it as a dataset. \
 The image is first mapped affinely to [0, 1]; scales are in physical units. \
 `intensity`: W = |f_σ − c|^p + ε with c given (`value`, image units), read at a point (`at`), or the brightest value. \
 `edges`: with g = |∇(G_σ * f)| / max|∇(G_σ * f)|, W = 1/(ε + g^p) to follow contours (`mode: follow`) or \

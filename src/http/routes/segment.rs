@@ -64,7 +64,7 @@ pub struct SegmentResponse {
     pub ball: Option<DatasetRef>,
     /// Per label: `label`, `cells`, `seeds`.
     pub labels_summary: Option<serde_json::Value>,
-    /// 2D: GeoJSON FeatureCollection, one MultiPolygon per label, positions `[axis 0, axis 1]` in index units.
+    /// 2D: GeoJSON FeatureCollection, one MultiPolygon per label, positions `[x, y] = [column, row] × spacing` (GeoJSON order).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contours: Option<serde_json::Value>,
     /// `cells`, `solves`, `seconds`, `queue_seconds`.
@@ -81,7 +81,7 @@ pub struct SkeletonResponse {
     /// 2D: the skeleton and its nodes over the shape (u8 RGB; `?format=png`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub picture: Option<DatasetRef>,
-    /// 2D: `nodes` (`id`, `point`, `radius`, `degree`) and `edges` (`source`, `target`, `points`, `radius`, `length`).
+    /// 2D: `nodes` (`id`, `point`, `radius`, `degree`) and `edges` (`source`, `target`, `points` from the source node to the target node, `radius`, `euclidean_length`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub graph: Option<serde_json::Value>,
     /// Cell counts, nodes, branches, timings.
@@ -105,7 +105,7 @@ pub struct PlanResponse {
     /// Vertices of the path, index coordinates, start to goal.
     pub path: Vec<Vec<f64>>,
     /// Physical length of the path.
-    pub length: f64,
+    pub euclidean_length: f64,
     /// Smallest clearance on the path (>= radius).
     pub min_clearance: f64,
     /// The robot's radius.

@@ -75,13 +75,13 @@ pub struct TensorMetricResponse {
     description = "Solves ‖∇U‖_{M⁻¹} = 1 on a 2D or 3D grid for a symmetric positive definite tensor field M \
 (a displacement v costs sqrt(vᵀMv)), with U = 0 at the sources, by fast marching on adaptive stencils \
 (Selling's reduction; causal and consistent for any anisotropy, cost growing like its logarithm). \
-The `tensor` section gives the field: a dataset with a trailing component axis (`components`: 3 numbers \
+The `metric` section (the same as `grid.distance`'s) gives the field: a dataset with a trailing component axis (`components`: 3 numbers \
 m00, m01, m11 per cell in 2D, 6 numbers m00, m01, m02, m11, m12, m22 in 3D), a `constant`, an `eigen` \
 decomposition, `energy_anisotropy` (W and A of the seed's eq. 1.17), a `structure_tensor` design from an \
 image (cheap along edges) or a `height_map` (W²(I + ∇h∇hᵀ), geodesics on a terrain). \
 A tensor that is not finite or not positive definite is a 400 naming the first bad cell. \
 Walls (`obstacles`) are never crossed, however wide the stencil. \
-`paths` lists start points whose minimal paths (descent along −M⁻¹∇U) are returned. \
+`ends` lists end points whose minimal paths (descent along −M⁻¹∇U) are returned, each from its source to its end. \
 Point coordinates are in array index order (axis 0 first), in index units, with a per-axis `spacing`.",
     request_body = GridTensorDistanceRequest,
     responses(
@@ -94,7 +94,7 @@ Point coordinates are in array index order (axis 0 first), in index units, with 
                     "data_url": "/v1/datasets/ds_0192f1b27c1e7d3a9d553c0f2b8a1e46/data", "shape": [256, 256]},
                 "stats": {"cells": 65536, "frozen": 65536, "stop": "completed", "max_anisotropy": 10.0,
                     "stencil_width": 3, "solve_seconds": 0.05, "queue_seconds": 0.0001, "total_seconds": 0.07},
-                "paths": [{"points": [[20.0, 200.0], [20.4, 199.7]], "length": 123.4, "distance": 123.1, "reached_source": true}]
+                "paths": [{"index": 0, "source": 0, "end": [20.0, 200.0], "points": [[128.0, 128.0], [127.6, 128.4], [20.0, 200.0]], "geodesic_length": 123.4, "euclidean_length": 129.6}]
             })
         ),
         (status = 400, response = crate::http::openapi::BadRequest),
@@ -122,7 +122,7 @@ pub async fn tensor_distance(
     path = "/v1/grid/tensor-metric",
     tag = "grid",
     summary = "Tensor field of a metric description",
-    description = "Evaluates a `tensor` section (the same as in `/v1/grid/tensor-distance`) and stores the field \
+    description = "Evaluates a `metric` section (the same as in `/v1/grid/tensor-distance` and `/v1/grid/distance`) and stores the field \
 as an f64 dataset of the grid's shape plus a trailing axis of 3 (2D) or 6 (3D) components, reusable as \
 `{\"kind\": \"components\", \"dataset\": id}`.",
     request_body = GridTensorMetricRequest,

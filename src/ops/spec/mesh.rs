@@ -66,13 +66,13 @@ impl MeshPointSpec {
     }
 }
 
-/// The surface distance method. `fast-marching` is accepted for `fast_marching`.
+/// The surface distance method (the old spelling `fast-marching` is refused,
+/// naming `fast_marching`: [`crate::ops::renamed`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MeshMethodSpec {
     /// Kimmel–Sethian fast marching, first order, with unfolding of obtuse triangles.
     #[default]
-    #[serde(alias = "fast-marching")]
     FastMarching,
     /// The heat method: prefactored per mesh dataset, two solves per query.
     Heat,
