@@ -3,8 +3,8 @@
 
 mod common;
 mod connections;
-mod datasets;
 mod conventions;
+mod datasets;
 mod errors;
 mod flow;
 mod gradient;
