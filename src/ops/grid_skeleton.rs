@@ -260,7 +260,7 @@ mod tests {
         target: usize,
         points: Vec<[f64; 2]>,
         radius: Vec<f64>,
-        length: f64,
+        euclidean_length: f64,
     }
 
     #[derive(Serialize)]
@@ -313,7 +313,7 @@ mod tests {
                     target: e.target,
                     points: e.points.clone(),
                     radius: e.radius.clone(),
-                    length: e.length,
+                    euclidean_length: e.length,
                 })
                 .collect(),
         };
