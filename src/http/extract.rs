@@ -106,3 +106,12 @@ pub fn bytes_rejection(e: BytesRejection) -> ApiError {
         ApiError::bad_request("body", format!("body: {}", e.body_text()))
     }
 }
+
+/// Whether a request's `Content-Type` is `multipart/form-data` (the bodies
+/// that take a JSON document or a form).
+pub fn is_multipart(headers: &axum::http::HeaderMap) -> bool {
+    headers
+        .get(axum::http::header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.to_ascii_lowercase().starts_with("multipart/form-data"))
+}

@@ -284,13 +284,22 @@ pub(crate) fn value_range(
         }
         return Ok((lo, hi));
     }
+    Ok(finite_min_max(values))
+}
+
+/// The finite minimum and maximum of `values`, `(0, 1)` if none is finite.
+pub(crate) fn finite_min_max(values: &[f64]) -> (f64, f64) {
     let (lo, hi) = values
         .iter()
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
             (lo.min(v), hi.max(v))
         });
-    Ok(if lo <= hi { (lo, hi) } else { (0.0, 1.0) })
+    if lo <= hi {
+        (lo, hi)
+    } else {
+        (0.0, 1.0)
+    }
 }
 
 /// Encodes a 2D array (or a 3D array of shape `(1, rows, cols)`) as a

@@ -577,13 +577,7 @@ fn finite_range(values: &[f64], range: Option<(f64, f64)>) -> Result<(f64, f64),
         }
         return Ok((lo, hi));
     }
-    let (lo, hi) = values
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
-    Ok(if lo <= hi { (lo, hi) } else { (0.0, 1.0) })
+    Ok(super::raster::finite_min_max(values))
 }
 
 /// Colours of a continuous plane, with its iso lines.

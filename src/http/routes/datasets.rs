@@ -547,11 +547,7 @@ impl<S: Send + Sync> FromRequest<S> for UploadBody {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let is_form = req
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .and_then(|v| v.to_str().ok())
-            .is_some_and(|v| v.to_ascii_lowercase().starts_with("multipart/form-data"));
+        let is_form = crate::http::extract::is_multipart(req.headers());
         if !is_form {
             let headers = req.headers().clone();
             let bytes = bytes::Bytes::from_request(req, state)

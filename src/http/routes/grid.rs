@@ -141,11 +141,7 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let is_form = req
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .and_then(|v| v.to_str().ok())
-            .is_some_and(|v| v.to_ascii_lowercase().starts_with("multipart/form-data"));
+        let is_form = crate::http::extract::is_multipart(req.headers());
         if !is_form {
             let ApiJson(params) = ApiJson::<GridDistanceRequest>::from_request(req, state).await?;
             return Ok(Self { params, file: None });
