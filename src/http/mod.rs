@@ -116,7 +116,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
 /// playground, the fallback and every middleware layer.
 pub fn router(state: AppState, settings: &crate::config::ServeArgs) -> axum::Router {
     let (api, doc) = api_router().split_for_parts();
-    let doc = openapi::allow_variant_tags(doc);
+    let doc = openapi::clients::for_clients(doc);
     let app = api
         .merge(routes::docs::router(doc))
         .merge(routes::playground::router())

@@ -114,3 +114,83 @@ async fn serves_the_document_the_docs_and_problem_fallbacks() {
     let ready = app.get("/readyz").await;
     assert_eq!(ready.status(), 200);
 }
+
+/// Issue 21, item 4: every operation's JSON request and success answer
+/// carry an example (recorded from a real call of the generated client,
+/// `bash .ci/clients.sh --record`), and an answer that is bytes by default is
+/// offered as `application/octet-stream` first, so that a generated client
+/// reads it as bytes.
+#[test]
+fn every_operation_has_examples_and_binary_answers_come_first() {
+    let doc: serde_json::Value =
+        serde_json::from_str(&geodex::http::openapi::document_json()).expect("json");
+    let mut missing = Vec::new();
+    let mut examples = 0;
+    for (path, item) in doc["paths"].as_object().expect("paths") {
+        for (method, op) in item.as_object().expect("path item") {
+            let id = op["operationId"].as_str().unwrap_or_default();
+            if let Some(body) = op["requestBody"]["content"]["application/json"].as_object() {
+                let schema_example = body["schema"]["$ref"]
+                    .as_str()
+                    .and_then(|r| r.strip_prefix("#/components/schemas/"))
+                    .is_some_and(|name| doc["components"]["schemas"][name]["example"].is_object());
+                if body.contains_key("example") || schema_example {
+                    examples += 1;
+                } else {
+                    missing.push(format!("{method} {path} ({id}): request"));
+                }
+            }
+            for (status, resp) in op["responses"].as_object().expect("responses") {
+                if !status.starts_with('2') {
+                    continue;
+                }
+                let content = resp["content"].as_object();
+                let Some(content) = content else { continue };
+                if let Some(json) = content.get("application/json") {
+                    if json.get("example").is_some() {
+                        examples += 1;
+                    } else {
+                        missing.push(format!("{method} {path} ({id}): answer {status}"));
+                    }
+                }
+            }
+        }
+    }
+    // The order of media types matters to generators (they take the first
+    // they know), and serde_json's maps are sorted: read the typed document.
+    let typed = geodex::http::openapi::document();
+    let mut binary = 0;
+    for (path, item) in &typed.paths.paths {
+        for op in [&item.get, &item.post, &item.delete].into_iter().flatten() {
+            for (status, resp) in &op.responses.responses {
+                let utoipa::openapi::RefOr::T(resp) = resp else {
+                    continue;
+                };
+                let Some((kind, content)) = resp.content.iter().next() else {
+                    continue;
+                };
+                let bytes = matches!(content,
+                    utoipa::openapi::RefOr::T(utoipa::openapi::Content {
+                        schema: Some(utoipa::openapi::RefOr::Ref(r)),
+                        ..
+                    }) if r.ref_location.ends_with("/FileBytes"));
+                if bytes {
+                    binary += 1;
+                    assert_eq!(
+                        kind, "application/octet-stream",
+                        "{path} {status}: an answer that is bytes by default lists octet-stream first"
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        binary >= 2,
+        "the dataset and job-result downloads are binary"
+    );
+    assert!(
+        missing.is_empty(),
+        "operations without an example (record them with `bash .ci/clients.sh --record`): {missing:#?}"
+    );
+    assert!(examples >= 60, "only {examples} examples");
+}

@@ -6,6 +6,8 @@
 
 use utoipa::{OpenApi, ToResponse};
 
+pub mod clients;
+
 use super::error::Problem;
 
 /// Description shared by the document and the grid operations.
@@ -259,53 +261,10 @@ impl utoipa::PartialSchema for FileBytes {
 
 impl utoipa::ToSchema for FileBytes {}
 
-/// The whole OpenAPI document (paths from the router, plus [`ApiDoc`]).
+/// The whole OpenAPI document (paths from the router, plus [`ApiDoc`]),
+/// written for client generators ([`clients::for_clients`]).
 pub fn document() -> utoipa::openapi::OpenApi {
-    allow_variant_tags(super::api_router().into_openapi())
-}
-
-/// Makes internally tagged enums satisfiable in the document.
-///
-/// utoipa describes a variant of `#[serde(tag = "kind")]` as
-/// `allOf: [{$ref: Variant}, {properties: {kind: ...}}]`, while `Variant`
-/// (a `deny_unknown_fields` struct) says `additionalProperties: false`: no
-/// object satisfies both, so clients and fuzzers cannot build one. serde
-/// itself removes the tag before the variant sees the object, so the fix is in
-/// the document only: the tag property is also listed in the variant's own
-/// schema.
-pub fn allow_variant_tags(mut doc: utoipa::openapi::OpenApi) -> utoipa::openapi::OpenApi {
-    use utoipa::openapi::schema::Schema;
-    use utoipa::openapi::RefOr;
-    let Some(components) = doc.components.as_mut() else {
-        return doc;
-    };
-    let mut tags: Vec<(String, String, RefOr<Schema>)> = Vec::new();
-    for schema in components.schemas.values() {
-        let RefOr::T(Schema::OneOf(one_of)) = schema else {
-            continue;
-        };
-        for variant in &one_of.items {
-            let RefOr::T(Schema::AllOf(all_of)) = variant else {
-                continue;
-            };
-            let [RefOr::Ref(target), RefOr::T(Schema::Object(tag))] = all_of.items.as_slice()
-            else {
-                continue;
-            };
-            let Some(target) = target.ref_location.strip_prefix("#/components/schemas/") else {
-                continue;
-            };
-            for (name, prop) in &tag.properties {
-                tags.push((target.to_string(), name.clone(), prop.clone()));
-            }
-        }
-    }
-    for (target, name, prop) in tags {
-        if let Some(RefOr::T(Schema::Object(object))) = components.schemas.get_mut(&target) {
-            object.properties.entry(name).or_insert(prop);
-        }
-    }
-    doc
+    clients::for_clients(super::api_router().into_openapi())
 }
 
 /// The document as pretty JSON with a trailing newline (what `api/openapi.json` holds).
@@ -337,6 +296,62 @@ mod tests {
                 s["properties"][tag].is_object(),
                 "{schema} must list `{tag}` or no object satisfies its variant"
             );
+        }
+    }
+
+    /// Rule 1 of `clients`: no union of objects is left without a
+    /// discriminator (generators drop such schemas and the endpoints that
+    /// use them), and every variant lists its tag as required.
+    #[test]
+    fn every_tagged_union_has_a_discriminator() {
+        let doc = serde_json::to_value(super::document()).expect("json");
+        let schemas = doc["components"]["schemas"].as_object().expect("schemas");
+        let mut unions = 0;
+        for (name, schema) in schemas {
+            let Some(items) = schema["oneOf"].as_array() else {
+                continue;
+            };
+            let objects = items
+                .iter()
+                .filter(|i| i["type"] == "object" || i["allOf"].is_array() || i["$ref"].is_string())
+                .count();
+            if objects < 2 {
+                continue;
+            }
+            unions += 1;
+            let d = &schema["discriminator"];
+            let property = d["propertyName"]
+                .as_str()
+                .unwrap_or_else(|| panic!("{name}"));
+            let mapping = d["mapping"].as_object().unwrap_or_else(|| panic!("{name}"));
+            assert_eq!(mapping.len(), items.len(), "{name}");
+            for (value, target) in mapping {
+                let target = target
+                    .as_str()
+                    .and_then(|t| t.strip_prefix("#/components/schemas/"));
+                let variant = &schemas[target.unwrap_or_default()];
+                assert_eq!(variant["properties"][property]["enum"][0], *value, "{name}");
+                assert!(
+                    variant["required"]
+                        .as_array()
+                        .is_some_and(|r| r.iter().any(|n| n == property)),
+                    "{name}: {value} requires {property}"
+                );
+            }
+        }
+        assert!(unions >= 5, "only {unions} tagged unions found");
+    }
+
+    /// Rule 3 of `clients`: operation ids are unique.
+    #[test]
+    fn operation_ids_are_unique() {
+        let doc = serde_json::to_value(super::document()).expect("json");
+        let mut seen = std::collections::HashSet::new();
+        for item in doc["paths"].as_object().expect("paths").values() {
+            for op in item.as_object().expect("item").values() {
+                let id = op["operationId"].as_str().expect("operationId");
+                assert!(seen.insert(id.to_string()), "{id} is used twice");
+            }
         }
     }
 }
