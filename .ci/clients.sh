@@ -31,17 +31,11 @@ if [ ! -x "$node_dir/node_modules/.bin/openapi-typescript" ]; then
 fi
 
 cargo build --locked --quiet --bin geodex
+# shellcheck source=tests/support/serve.sh
+source tests/support/serve.sh
 work="$(mktemp -d)"
-port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
-./target/debug/geodex serve --addr "127.0.0.1:$port" --data-dir "$work/data" \
-  --request-timeout-secs 120 >"$work/server.log" 2>&1 &
-pid=$!
-cleanup() { kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; rm -rf "$work"; }
-trap cleanup EXIT
-for _ in $(seq 1 100); do
-  curl -fsS "http://127.0.0.1:$port/healthz" >/dev/null 2>&1 && break
-  sleep 0.1
-done
+serve_geodex ./target/debug/geodex "$work" --request-timeout-secs 120
+port="$GEODEX_PORT"
 curl -fsS "http://127.0.0.1:$port/openapi.json" -o "$work/openapi.json"
 
 echo "-- openapi-python-client"

@@ -13,18 +13,11 @@ if [ ! -x "$venv/bin/schemathesis" ]; then
 fi
 
 cargo build --locked --quiet --bin geodex
-data_dir="$(mktemp -d)"
-port="$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')"
-./target/debug/geodex serve --addr "127.0.0.1:$port" --data-dir "$data_dir" \
-  --max-cells 262144 --request-timeout-secs 10 >"$data_dir/server.log" 2>&1 &
-pid=$!
-cleanup() { kill "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; rm -rf "$data_dir"; }
-trap cleanup EXIT
-
-for _ in $(seq 1 100); do
-  curl -fsS "http://127.0.0.1:$port/healthz" >/dev/null 2>&1 && break
-  sleep 0.1
-done
+# shellcheck source=tests/support/serve.sh
+source tests/support/serve.sh
+work="$(mktemp -d)"
+serve_geodex ./target/debug/geodex "$work" --max-cells 262144 --request-timeout-secs 10
+port="$GEODEX_PORT"
 
 status=0
 "$venv/bin/schemathesis" run "http://127.0.0.1:$port/openapi.json" \
@@ -32,6 +25,6 @@ status=0
   --max-examples 30 --workers 2 --suppress-health-check all --warnings off \
   || status=$?
 if [ "$status" -ne 0 ]; then
-  echo "--- server log (tail)"; tail -n 50 "$data_dir/server.log"
+  echo "--- server log (tail)"; tail -n 50 "$work/server.log"
 fi
 exit "$status"

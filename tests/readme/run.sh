@@ -53,21 +53,11 @@ BIN="$(cd "$(dirname "$BIN")" && pwd)/$(basename "$BIN")"
 [ -x "$BIN" ] || { echo "no geodex binary at $BIN" >&2; exit 1; }
 
 WORK="$(mktemp -d)"
-mkdir -p "$WORK/data" "$WORK/run" "$WORK/bin" "$WORK/blocks"
-PORT="$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')"
-"$BIN" serve --addr "127.0.0.1:$PORT" --data-dir "$WORK/data" >"$WORK/server.log" 2>&1 &
-SERVER=$!
-cleanup() {
-  kill "$SERVER" 2>/dev/null || true
-  wait "$SERVER" 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
-for _ in $(seq 1 200); do
-  curl -sf "http://127.0.0.1:$PORT/healthz" >/dev/null && break
-  kill -0 "$SERVER" 2>/dev/null || { echo "the server did not start:" >&2; cat "$WORK/server.log" >&2; exit 1; }
-  sleep 0.1
-done
+mkdir -p "$WORK/run" "$WORK/bin" "$WORK/blocks"
+# shellcheck source=tests/support/serve.sh
+source "$ROOT/tests/support/serve.sh"
+serve_geodex "$BIN" "$WORK"
+PORT="$GEODEX_PORT"
 
 ln -s "$BIN" "$WORK/bin/geodex"
 (cd "$WORK/run" && python3 "$ROOT/tests/readme/make_inputs.py")
