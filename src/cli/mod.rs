@@ -1,6 +1,10 @@
-//! The `geodex` command line: `serve` (the default), `distance` and `bench`.
+//! The `geodex` command line: `serve` (the default), the grid and mesh
+//! commands (`distance`, `path`, `segment`, ...) and `bench`.
 //!
 //! A bare `geodex` (with or without serve flags) runs `geodex serve`.
+//! Shared pieces: [`SpacingFlag`], [`design::DesignFlag`] (`--design`), the
+//! array writer `output` (format by extension), the runner's way in `run`
+//! and the field-to-flag tables of errors (`flags`).
 
 use std::process::ExitCode;
 
@@ -10,9 +14,12 @@ use crate::config::ServeArgs;
 
 pub mod bench;
 mod bench_tensor;
+pub mod design;
 pub mod distance;
+mod flags;
 pub mod gradient;
 pub mod inverse;
+mod output;
 pub mod path;
 mod run;
 pub mod segment;
