@@ -836,7 +836,7 @@ fn cost_gradient_takes_a_tensor_metric_and_returns_one_value_per_component() {
 }
 
 // ---- issue 21: output formats by extension, --design, errors in the
-// ---- flags' names.
+// ---- flags' names, a progress bar only on a terminal.
 
 /// An image with a bright diagonal band on a darker ramp, values in [1, 2].
 fn band_image(shape: [usize; 2]) -> ArrayD<f64> {
@@ -1201,4 +1201,32 @@ fn errors_name_the_command_line_flags_not_the_request_fields() {
         no_field(&line);
         eprintln!("{line}");
     }
+}
+
+#[test]
+fn no_progress_is_drawn_when_stderr_is_not_a_terminal() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    // Large enough to run for a while in a debug build.
+    let o = geodex(&[
+        "distance",
+        "--shape",
+        "700,700",
+        "--source",
+        "3,3",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.stderr.is_empty(),
+        "stderr: {:?}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.starts_with("geodex: wrote"), "{stdout}");
+    assert!(
+        !stdout.contains('\r') && !stdout.contains('\u{1b}'),
+        "{stdout:?}"
+    );
 }

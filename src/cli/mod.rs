@@ -4,7 +4,8 @@
 //! A bare `geodex` (with or without serve flags) runs `geodex serve`.
 //! Shared pieces: [`SpacingFlag`], [`design::DesignFlag`] (`--design`), the
 //! array writer `output` (format by extension), the runner's way in `run`
-//! and the field-to-flag tables of errors (`flags`).
+//! with its progress bar (`progress`) and the field-to-flag tables of errors
+//! (`flags`).
 
 use std::process::ExitCode;
 
@@ -21,6 +22,7 @@ pub mod gradient;
 pub mod inverse;
 mod output;
 pub mod path;
+mod progress;
 mod run;
 pub mod segment;
 

@@ -1,14 +1,17 @@
 //! The command line's way into the one runner ([`crate::runner::Runner`]):
 //! the same validation, input resolution and solver pool as the service,
 //! driven to completion from synchronous code, with the files a command read
-//! as its inputs. Every refusal is reported on the command's flags through
-//! its [`FlagMap`].
+//! as its inputs. Every run gets a progress bar on stderr
+//! ([`super::progress::Progress`], drawn only on a terminal after a second),
+//! and every refusal is reported on the command's flags through its
+//! [`FlagMap`].
 
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
 pub(crate) use super::flags::{CliError, FlagMap};
+use super::progress::Progress;
 use crate::numerics::grid::MAX_CELLS;
 use crate::ops::{DynOperation, InputArray, OpLimits, OpOutput};
 use crate::pool::SolverPool;
@@ -36,7 +39,8 @@ pub(crate) fn run_operation(
 }
 
 /// Runs `op` on a solver pool of `threads` threads (default: this
-/// machine's), without deadline; the output and how long it ran.
+/// machine's), without deadline, with a progress bar; the output and how
+/// long it ran.
 pub(crate) fn run_on(
     op: Box<dyn DynOperation>,
     inputs: impl LoadInputs,
@@ -47,7 +51,13 @@ pub(crate) fn run_on(
         threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = SolverPool::new(threads, 1).map_err(|e| CliError::Other(e.to_string()))?;
     let runner = Runner::new(Arc::new(pool), CLI_LIMITS);
-    let result = runner.run_blocking(op, inputs, RunOptions::deadline(Duration::MAX));
+    let progress = Progress::start(op.name());
+    let options = RunOptions {
+        deadline: Duration::MAX,
+        watch: Some(progress.watch()),
+    };
+    let result = runner.run_blocking(op, inputs, options);
+    progress.finish();
     match result {
         Ok(ran) => Ok(ran),
         Err(RunError::Invalid(e) | RunError::Op(e)) => Err(flags.error(e)),
