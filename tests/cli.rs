@@ -835,8 +835,8 @@ fn cost_gradient_takes_a_tensor_metric_and_returns_one_value_per_component() {
     assert!((euler - 0.5 * j).abs() < 1e-9 * j, "{euler} vs {j}/2");
 }
 
-// ---- issue 21: output formats by extension, --design, errors in the
-// ---- flags' names, a progress bar only on a terminal.
+// ---- issue 21: output formats by extension, --design, `geodex metric`,
+// ---- errors in the flags' names, a progress bar only on a terminal.
 
 /// An image with a bright diagonal band on a darker ramp, values in [1, 2].
 fn band_image(shape: [usize; 2]) -> ArrayD<f64> {
@@ -1085,6 +1085,85 @@ fn design_is_taken_wherever_a_cost_is_read() {
         s(&plain),
     ]);
     assert!(line.starts_with("geodex: --design: "), "{line}");
+}
+
+#[test]
+fn metric_writes_what_the_grid_metric_operation_gives() {
+    use geodex::numerics::Control;
+    use geodex::ops::grid_metric::GridMetricRequest;
+    use geodex::ops::{InputArray, OpLimits, Operation};
+    use std::collections::HashMap;
+    use std::sync::Arc;
+
+    let dir = TempDir::new().unwrap();
+    let img = path(&dir, "img.npy");
+    let picture = band_image([20, 26]);
+    write_npy(&img, &picture).unwrap();
+    let design = "vesselness:scales=1;2,polarity=bright";
+    let (out, png) = (path(&dir, "w.npy"), path(&dir, "w.png"));
+    for o in [&out, &png] {
+        let r = geodex(&[
+            "metric",
+            "--image",
+            s(&img),
+            "--design",
+            design,
+            "--spacing",
+            "1,1",
+            "--out",
+            s(o),
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(
+            r.stderr.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+    }
+    let w: ArrayD<f64> = read_npy(&out).unwrap();
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+
+    let request: GridMetricRequest = serde_json::from_value(serde_json::json!({
+        "cost": {"dataset": "img", "design": {"kind": "vesselness", "scales": [1, 2], "polarity": "bright"}},
+        "spacing": [1, 1]
+    }))
+    .unwrap();
+    let mut inputs = HashMap::new();
+    inputs.insert(
+        "img".to_string(),
+        InputArray {
+            array: Arc::new(geodex::io::ArrayData::F64(picture)),
+            spacing: None,
+        },
+    );
+    let expected = request
+        .run(&inputs, &OpLimits::default(), &Control::new())
+        .unwrap();
+    let expected = match expected.array("metric").unwrap() {
+        geodex::io::ArrayData::F64(a) => a.clone(),
+        other => panic!("{other:?}"),
+    };
+    assert_same(&w, &expected);
+
+    // Without --design the file's values are W; a bad --image names it.
+    let line = one_error_line(&[
+        "metric",
+        "--image",
+        s(&path(&dir, "none.npy")),
+        "--out",
+        s(&out),
+    ]);
+    assert!(line.starts_with("geodex: --image: cannot read"), "{line}");
+    let line = one_error_line(&[
+        "metric",
+        "--image",
+        s(&img),
+        "--design",
+        "edges",
+        "--out",
+        s(&path(&dir, "w.bmp")),
+    ]);
+    assert!(line.contains("--out: unknown extension '.bmp'"), "{line}");
 }
 
 #[test]
