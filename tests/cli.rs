@@ -1286,11 +1286,12 @@ fn errors_name_the_command_line_flags_not_the_request_fields() {
 fn no_progress_is_drawn_when_stderr_is_not_a_terminal() {
     let dir = TempDir::new().unwrap();
     let out = path(&dir, "u.npy");
-    // Large enough to run for a while in a debug build.
+    // Large enough to run past the one second after which a terminal would
+    // get a bar (about 1.5 s in the test profile).
     let o = geodex(&[
         "distance",
         "--shape",
-        "700,700",
+        "2500,2500",
         "--source",
         "3,3",
         "--out",
