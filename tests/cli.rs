@@ -834,3 +834,479 @@ fn cost_gradient_takes_a_tensor_metric_and_returns_one_value_per_component() {
     let euler: f64 = g.iter().zip(m.iter()).map(|(g, m)| g * m).sum();
     assert!((euler - 0.5 * j).abs() < 1e-9 * j, "{euler} vs {j}/2");
 }
+
+// ---- issue 21: output formats by extension, --design, `geodex metric`,
+// ---- errors in the flags' names, a progress bar only on a terminal.
+
+/// An image with a bright diagonal band on a darker ramp, values in [1, 2].
+fn band_image(shape: [usize; 2]) -> ArrayD<f64> {
+    ArrayD::from_shape_fn(IxDyn(&shape), |ix| {
+        let (i, j) = (ix[0] as f64, ix[1] as f64);
+        let band = (-((i - j) / 2.0).powi(2)).exp();
+        1.0 + 0.2 * j / shape[1] as f64 + 0.8 * band
+    })
+}
+
+#[test]
+fn out_extension_chooses_npy_tiff_png_or_png16_and_unknown_ones_are_refused() {
+    let dir = TempDir::new().unwrap();
+    let base = ["distance", "--shape", "20,30", "--source", "4,5"];
+    let run = |out: &Path, labels: Option<&Path>| {
+        let mut args: Vec<&str> = base.to_vec();
+        args.extend(["--out", s(out)]);
+        if let Some(l) = labels {
+            args.extend(["--labels", s(l)]);
+        }
+        let o = geodex(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    let npy = path(&dir, "u.npy");
+    run(&npy, None);
+    let u: ArrayD<f64> = read_npy(&npy).unwrap();
+
+    // .png: the colour-mapped picture (with its colour bar: wider than the grid).
+    let (png, labels_png) = (path(&dir, "U.png"), path(&dir, "L.png"));
+    run(&png, Some(&labels_png));
+    for p in [&png, &labels_png] {
+        let bytes = std::fs::read(p).unwrap();
+        assert!(
+            bytes.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "{p:?} is not a PNG"
+        );
+        let picture = image::load_from_memory(&bytes).unwrap();
+        assert!(picture.height() >= 20, "{p:?}: {}", picture.height());
+        assert!(picture.width() >= 30, "{p:?}: {}", picture.width());
+    }
+    let picture = image::load_from_memory(&std::fs::read(&png).unwrap()).unwrap();
+    assert!(picture.width() > 30, "no colour bar: {}", picture.width());
+
+    // .tiff: f32 values.
+    let tiff = path(&dir, "u.tiff");
+    run(&tiff, None);
+    let bytes = std::fs::read(&tiff).unwrap();
+    let back = geodex::io::decode(&bytes, None, &geodex::io::Limits::default()).unwrap();
+    assert_eq!(back.format, geodex::io::Format::Tiff);
+    assert_eq!(back.array.shape(), u.shape());
+    for (i, &v) in u.iter().enumerate() {
+        let t = back.array.get_f64(i).unwrap();
+        assert!((t - v).abs() <= 1e-6 * v.abs().max(1.0), "{t} vs {v}");
+    }
+
+    // .png16: 16-bit grey over the finite min..max.
+    let png16 = path(&dir, "u.png16");
+    run(&png16, None);
+    let bytes = std::fs::read(&png16).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG"));
+    let grey = image::load_from_memory(&bytes).unwrap().into_luma16();
+    assert_eq!((grey.width(), grey.height()), (30, 20));
+    let lo = u.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = u.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let step = (hi - lo) / 65535.0;
+    for (ix, &v) in u.indexed_iter() {
+        let q = f64::from(grey.get_pixel(ix[1] as u32, ix[0] as u32)[0]);
+        assert!((lo + q * step - v).abs() <= step, "{v} vs {q}");
+    }
+
+    // Unknown extensions name the flag, before any work.
+    for (flag, bad) in [("--out", "u.xyz"), ("--labels", "l.jpg")] {
+        let out = path(&dir, bad);
+        let mut args: Vec<&str> = base.to_vec();
+        if flag == "--out" {
+            args.extend(["--out", s(&out)]);
+        } else {
+            args.extend(["--out", s(&npy), "--labels", s(&out)]);
+        }
+        let line = one_error_line(&args);
+        let ext = &bad[bad.rfind('.').unwrap()..];
+        assert_eq!(
+            line,
+            format!("geodex: {flag}: unknown extension '{ext}'; use .npy, .tiff, .png or .png16")
+        );
+        assert!(!out.exists());
+    }
+    // A volume cannot be a 16-bit PNG: the error names --out.
+    let line = one_error_line(&[
+        "distance",
+        "--shape",
+        "4,5,6",
+        "--source",
+        "1,1,1",
+        "--out",
+        s(&path(&dir, "v.png16")),
+    ]);
+    assert!(line.starts_with("geodex: --out: cannot write"), "{line}");
+}
+
+#[test]
+fn design_is_taken_wherever_a_cost_is_read() {
+    let dir = TempDir::new().unwrap();
+    let img = path(&dir, "img.npy");
+    write_npy(&img, &band_image([24, 24])).unwrap();
+    let run = |args: &[&str]| {
+        let o = geodex(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    let differs = |a: &Path, b: &Path| {
+        let (a, b): (ArrayD<f64>, ArrayD<f64>) = (read_npy(a).unwrap(), read_npy(b).unwrap());
+        assert_eq!(a.shape(), b.shape());
+        a.iter().zip(b.iter()).any(|(x, y)| (x - y).abs() > 1e-6)
+    };
+    let (plain, designed, json) = (
+        path(&dir, "plain.npy"),
+        path(&dir, "designed.npy"),
+        path(&dir, "json.npy"),
+    );
+    let distance = |out: &Path, design: Option<&str>| {
+        let mut args = vec![
+            "distance",
+            "--cost",
+            s(&img),
+            "--source",
+            "2,2",
+            "--out",
+            s(out),
+        ];
+        if let Some(d) = design {
+            args.extend(["--design", d]);
+        }
+        run(&args);
+    };
+    distance(&plain, None);
+    distance(&designed, Some("edges:mode=barrier,sigma=1.5"));
+    distance(
+        &json,
+        Some(r#"{"kind": "edges", "mode": "barrier", "sigma": 1.5}"#),
+    );
+    assert!(differs(&plain, &designed), "--design changed nothing");
+    assert!(
+        !differs(&designed, &json),
+        "the short form and the JSON differ"
+    );
+
+    let segment = |out: &Path, design: Option<&str>| {
+        let labels = path(&dir, "l.npy");
+        let mut args = vec![
+            "segment",
+            "--cost",
+            s(&img),
+            "--seed",
+            "1:2,20",
+            "--seed",
+            "2:20,2",
+            "--out",
+            s(&labels),
+            "--distance",
+            s(out),
+        ];
+        if let Some(d) = design {
+            args.extend(["--design", d]);
+        }
+        run(&args);
+    };
+    segment(&plain, None);
+    segment(&designed, Some("intensity:value=2,power=2"));
+    assert!(
+        differs(&plain, &designed),
+        "segment: --design changed nothing"
+    );
+
+    for command in ["sample", "cost-gradient", "group", "offset"] {
+        let mut args = vec![command, "--design", "edges"];
+        let keys = path(&dir, "k.json");
+        std::fs::write(&keys, "[[2, 2], [20, 20]]").unwrap();
+        match command {
+            "sample" => args.extend(["--cost", s(&img), "--count", "3"]),
+            "cost-gradient" => {
+                args.extend(["--cost", s(&img), "--source", "2,2", "--target", "20,20"])
+            }
+            "group" => args.extend(["--cost", s(&img), "--key-points", s(&keys)]),
+            _ => args.extend([
+                "--mask",
+                s(&img),
+                "--radius",
+                "2",
+                "--geodesic",
+                "--cost",
+                s(&img),
+            ]),
+        }
+        let out = path(
+            &dir,
+            if command == "group" {
+                "g.json"
+            } else {
+                "o.npy"
+            },
+        );
+        args.extend(["--out", s(&out)]);
+        run(&args);
+    }
+    // A design without an image, and a design that is none, name --design.
+    let line = one_error_line(&[
+        "segment",
+        "--shape",
+        "8,8",
+        "--seed",
+        "1:1,1",
+        "--design",
+        "edges",
+        "--out",
+        s(&plain),
+    ]);
+    assert!(line.starts_with("geodex: --design: "), "{line}");
+    let line = one_error_line(&[
+        "distance",
+        "--cost",
+        s(&img),
+        "--source",
+        "1,1",
+        "--design",
+        "blur",
+        "--out",
+        s(&plain),
+    ]);
+    assert!(
+        line.starts_with("geodex: --design: ") && line.contains("blur"),
+        "{line}"
+    );
+    let line = one_error_line(&[
+        "distance",
+        "--cost",
+        s(&img),
+        "--source",
+        "1,1",
+        "--design",
+        "edges:sigma=-1",
+        "--out",
+        s(&plain),
+    ]);
+    assert!(line.starts_with("geodex: --design: "), "{line}");
+}
+
+#[test]
+fn metric_writes_what_the_grid_metric_operation_gives() {
+    use geodex::numerics::Control;
+    use geodex::ops::grid_metric::GridMetricRequest;
+    use geodex::ops::{InputArray, OpLimits, Operation};
+    use std::collections::HashMap;
+    use std::sync::Arc;
+
+    let dir = TempDir::new().unwrap();
+    let img = path(&dir, "img.npy");
+    let picture = band_image([20, 26]);
+    write_npy(&img, &picture).unwrap();
+    let design = "vesselness:scales=1;2,polarity=bright";
+    let (out, png) = (path(&dir, "w.npy"), path(&dir, "w.png"));
+    for o in [&out, &png] {
+        let r = geodex(&[
+            "metric",
+            "--image",
+            s(&img),
+            "--design",
+            design,
+            "--spacing",
+            "1,1",
+            "--out",
+            s(o),
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(
+            r.stderr.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+    }
+    let w: ArrayD<f64> = read_npy(&out).unwrap();
+    assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+
+    let request: GridMetricRequest = serde_json::from_value(serde_json::json!({
+        "cost": {"dataset": "img", "design": {"kind": "vesselness", "scales": [1, 2], "polarity": "bright"}},
+        "spacing": [1, 1]
+    }))
+    .unwrap();
+    let mut inputs = HashMap::new();
+    inputs.insert(
+        "img".to_string(),
+        InputArray {
+            array: Arc::new(geodex::io::ArrayData::F64(picture)),
+            spacing: None,
+        },
+    );
+    let expected = request
+        .run(&inputs, &OpLimits::default(), &Control::new())
+        .unwrap();
+    let expected = match expected.array("metric").unwrap() {
+        geodex::io::ArrayData::F64(a) => a.clone(),
+        other => panic!("{other:?}"),
+    };
+    assert_same(&w, &expected);
+
+    // Without --design the file's values are W; a bad --image names it.
+    let line = one_error_line(&[
+        "metric",
+        "--image",
+        s(&path(&dir, "none.npy")),
+        "--out",
+        s(&out),
+    ]);
+    assert!(line.starts_with("geodex: --image: cannot read"), "{line}");
+    let line = one_error_line(&[
+        "metric",
+        "--image",
+        s(&img),
+        "--design",
+        "edges",
+        "--out",
+        s(&path(&dir, "w.bmp")),
+    ]);
+    assert!(line.contains("--out: unknown extension '.bmp'"), "{line}");
+}
+
+#[test]
+fn errors_name_the_command_line_flags_not_the_request_fields() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    let o = s(&out);
+    let paths_json = path(&dir, "p.json");
+    let no_field = |line: &str| {
+        for field in [
+            "sources[",
+            "seeds[",
+            "seed_image",
+            "`seeds`",
+            "ends[",
+            "targets[",
+            "cost.dataset",
+        ] {
+            assert!(
+                !line.contains(field),
+                "{line:?} names the request field {field}"
+            );
+        }
+    };
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        (
+            vec![
+                "distance", "--shape", "16,16", "--source", "40,1", "--out", o,
+            ],
+            &["geodex: --source 1: "],
+        ),
+        (
+            vec!["segment", "--shape", "16,16", "--out", o],
+            &["geodex: --seed: ", "--seed-image"],
+        ),
+        (
+            vec![
+                "segment", "--shape", "16,16", "--seed", "1:2,2", "--seed", "2:99,2", "--out", o,
+            ],
+            &["geodex: --seed 2: "],
+        ),
+        (
+            vec!["segment", "--shape", "16,16", "--seed", "0:2,2", "--out", o],
+            &["geodex: --seed 1: "],
+        ),
+        (
+            vec![
+                "cost-gradient",
+                "--shape",
+                "16,16",
+                "--source",
+                "2,2",
+                "--target",
+                "3,3",
+                "--target",
+                "3,99",
+                "--out",
+                o,
+            ],
+            &["geodex: --target 2: "],
+        ),
+        (
+            vec![
+                "cost-gradient",
+                "--shape",
+                "16,16",
+                "--source",
+                "99,2",
+                "--target",
+                "3,3",
+                "--out",
+                o,
+            ],
+            &["geodex: --source 1: "],
+        ),
+        (
+            vec!["sample", "--shape", "16,16", "--out", o],
+            &["geodex: --count: ", "`--radius`"],
+        ),
+        (
+            vec![
+                "path",
+                "--shape",
+                "16,16",
+                "--source",
+                "1,1",
+                "--to",
+                "30,1",
+                "--out",
+                s(&paths_json),
+            ],
+            &["geodex: --to 1: "],
+        ),
+        (
+            vec![
+                "distance",
+                "--shape",
+                "16,16",
+                "--source",
+                "1,1",
+                "--spacing",
+                "1,-1",
+                "--out",
+                o,
+            ],
+            &["geodex: --spacing value 2: "],
+        ),
+    ];
+    for (args, needles) in cases {
+        let line = one_error_line(&args);
+        for n in needles {
+            assert!(line.contains(n), "{args:?}: {line:?} lacks {n:?}");
+        }
+        no_field(&line);
+        eprintln!("{line}");
+    }
+}
+
+#[test]
+fn no_progress_is_drawn_when_stderr_is_not_a_terminal() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    // Large enough to run past the one second after which a terminal would
+    // get a bar (about 1.5 s in the test profile).
+    let o = geodex(&[
+        "distance",
+        "--shape",
+        "2500,2500",
+        "--source",
+        "3,3",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.stderr.is_empty(),
+        "stderr: {:?}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.starts_with("geodex: wrote"), "{stdout}");
+    assert!(
+        !stdout.contains('\r') && !stdout.contains('\u{1b}'),
+        "{stdout:?}"
+    );
+}

@@ -1,5 +1,7 @@
 //! `geodex distance`: the distance map of a cost file (or a unit cost on a
-//! shape) for batch users, written as NPY.
+//! shape, or a cost designed from an image with `--design`) for batch users,
+//! written as NPY, TIFF, a colour-mapped PNG or a 16-bit PNG after the
+//! extension of `--out` ([`super::output`]).
 //!
 //! The command builds a [`GridDistanceRequest`], the schema the HTTP service
 //! and the job queue use, and runs it with [`grid_distance::execute`], so the
@@ -12,6 +14,7 @@
 //! geodex distance --tensor T.npy --source 10,20 --out U.npy
 //! geodex distance --phi PHI.npy --signed --out D.npy       # redistancing, as skfmm.distance(phi)
 //! geodex distance --source-mask REGION.npy --cost W.npy --out U.npy
+//! geodex distance --cost road.png --design edges --source 10,20 --out U.png
 //! ```
 //!
 //! `--tensor T.npy` gives a Riemannian metric instead of a cost: shape
@@ -29,16 +32,18 @@ use std::sync::Arc;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
+use super::design::DesignFlag;
+use super::output::{self, OutputError};
 use super::SpacingFlag;
 
-use super::run::{run_operation, CliInputs, CliRunError};
-use crate::io::{self, ArrayData, Limits};
+use super::run::{run_operation, CliError, CliInputs, FlagMap};
+use crate::io::{self, Limits};
 use crate::numerics::grid::MAX_CELLS;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
 use crate::ops::spec::distance::GridDistanceRequest;
 use crate::ops::spec::scheme::{ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec, StopSpec};
 use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
-use crate::ops::{InputArray, OpError};
+use crate::ops::InputArray;
 
 /// Flags of `geodex distance`.
 #[derive(Debug, Clone, Args)]
@@ -52,7 +57,7 @@ pub struct DistanceArgs {
     /// A Riemannian metric instead of a cost: an array of shape (N, M, 3)
     /// holding m11, m12, m22 per cell (2D) or (N, M, P, 6) holding m11, m12,
     /// m13, m22, m23, m33 (3D); every cell symmetric positive definite.
-    #[arg(long, value_name = "T.npy", conflicts_with_all = ["speed", "method", "connectivity"])]
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["speed", "design", "method", "connectivity"])]
     pub tensor: Option<PathBuf>,
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
@@ -85,10 +90,12 @@ pub struct DistanceArgs {
     /// Stop once these points (index coordinates) are reached; repeatable.
     #[arg(long = "target", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub targets: Vec<String>,
-    /// Where to write the distance U (f64 NPY, +inf where not reached).
+    /// Where to write the distance U (f64, +inf where not reached): `.npy`,
+    /// `.tiff` (f32), `.png` (colour-mapped picture) or `.png16` (16-bit grey).
     #[arg(long, value_name = "U.npy")]
     pub out: PathBuf,
-    /// Where to write the Voronoi labels (i32 NPY, -1 where not reached).
+    /// Where to write the Voronoi labels (i32, -1 where not reached), by
+    /// extension as --out.
     #[arg(long, value_name = "L.npy")]
     pub labels: Option<PathBuf>,
 }
@@ -116,6 +123,9 @@ pub struct SchemeFlags {
     /// Read the values of --cost as a speed F = 1/W (0 marks a wall).
     #[arg(long)]
     pub speed: bool,
+    /// Design the cost from the --cost image.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// A mask of the grid's shape whose non-zero cells are obstacles.
     #[arg(long, value_name = "MASK.npy")]
     pub obstacles: Option<PathBuf>,
@@ -165,21 +175,6 @@ impl SchemeFlags {
 /// Point sources (index coordinates) as the request's source sections.
 pub(crate) fn point_sources(points: Vec<Vec<f64>>) -> Vec<SourceSpec> {
     points.into_iter().map(SourceSpec::at_point).collect()
-}
-
-/// The source an error's field names (`sources[2].mask` → 2).
-fn source_index(e: &OpError) -> Option<usize> {
-    let rest = e.field()?.strip_prefix("sources[")?;
-    rest[..rest.find(']')?].parse().ok()
-}
-
-/// An [`OpError`] reported on the given flag.
-fn op_error_as(e: OpError, name: &str) -> DistanceError {
-    match e {
-        OpError::Cancelled => DistanceError::Cancelled,
-        OpError::UnknownDataset { id, .. } => flag(name, format!("dataset '{id}' not found")),
-        OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => flag(name, reason),
-    }
 }
 
 /// A `--method` value, spelled as in the request JSON (`fast_marching`).
@@ -242,6 +237,22 @@ pub enum DistanceError {
     Cancelled,
 }
 
+impl From<CliError> for DistanceError {
+    fn from(e: CliError) -> Self {
+        match e {
+            CliError::Flag { flag, reason } => DistanceError::Flag { flag, reason },
+            CliError::Cancelled => DistanceError::Cancelled,
+            CliError::Other(reason) => flag("geodex", reason),
+        }
+    }
+}
+
+impl From<OutputError> for DistanceError {
+    fn from(e: OutputError) -> Self {
+        flag(e.flag(), e.reason())
+    }
+}
+
 pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> DistanceError {
     DistanceError::Flag {
         flag: flag.into(),
@@ -251,6 +262,8 @@ pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> Distan
 
 /// Runs `geodex distance`.
 pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
+    output::check("--out", Some(&args.out))?;
+    output::check("--labels", args.labels.as_deref())?;
     let sources = parse_points("--source", &args.sources)?;
     let targets = parse_points("--target", &args.targets)?;
     let scheme = &args.scheme;
@@ -259,7 +272,8 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
         args.shape.as_deref(),
         args.tensor.as_deref(),
     );
-    let (mut inputs, mut cost, tensor) = metric.load(None)?;
+    let design = scheme.design.spec(args.cost.is_some(), "--cost")?;
+    let (mut inputs, mut cost, tensor) = metric.load(design)?;
     let mut cost_flag = metric.flag();
     let mut spacing = scheme.spacing.spacing.clone();
     let mut sources = point_sources(sources);
@@ -304,6 +318,22 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
         ));
     }
     let point_count = args.sources.len();
+    let flags = FlagMap::new()
+        .each_in("sources", "--source", 0..point_count)
+        .all_in(
+            "sources",
+            if args.phi.is_some() {
+                "--phi"
+            } else {
+                "--source-mask"
+            },
+            point_count..usize::MAX,
+        )
+        .field("sources", "--source")
+        .each("stop.targets", "--target")
+        .field("stop.max_distance", "--max-distance")
+        .field("outputs.labels", "--labels")
+        .metric(cost_flag);
 
     let request = GridDistanceRequest {
         cost,
@@ -326,24 +356,12 @@ pub fn run(args: &DistanceArgs) -> Result<(), DistanceError> {
         },
         signed: args.signed,
     };
-    let mut output = run_operation(Box::new(request), inputs).map_err(|e| match e {
-        // The sources after the points are --phi or --source-mask.
-        CliRunError::Op(e) if source_index(&e).is_some_and(|i| i >= point_count) => {
-            let name = if args.phi.is_some() {
-                "--phi"
-            } else {
-                "--source-mask"
-            };
-            op_error_as(e, name)
-        }
-        CliRunError::Op(e) if e.field() == Some("signed") => op_error_as(e, "--signed"),
-        e => run_error(e, cost_flag),
-    })?;
+    let mut output = run_operation(Box::new(request), inputs, &flags)?;
     let stats = std::mem::take(&mut output.document["stats"]);
     for out in output.arrays {
         match (out.name.as_str(), &args.labels) {
-            ("distance", _) => write_array("--out", &args.out, out.array)?,
-            ("labels", Some(path)) => write_array("--labels", path, out.array)?,
+            ("distance", _) => output::write_array("--out", &args.out, &out.array)?,
+            ("labels", Some(path)) => output::write_array("--labels", path, &out.array)?,
             _ => {}
         }
     }
@@ -468,81 +486,9 @@ pub(crate) fn read_array(name: &str, path: &Path) -> Result<io::Decoded, Distanc
     io::decode(&bytes, None, &limits).map_err(|e| flag(name, format!("'{}': {e}", path.display())))
 }
 
-fn write_array(name: &str, path: &Path, array: ArrayData) -> Result<(), DistanceError> {
-    let bytes = io::encode_npy(&array).map_err(|e| flag(name, e.to_string()))?;
-    std::fs::write(path, bytes)
-        .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
-}
-
-/// Maps a failed run to the flag at fault ([`op_error`]).
-pub(crate) fn run_error(e: CliRunError, cost_flag: &str) -> DistanceError {
-    match e {
-        CliRunError::Op(e) => op_error(e, cost_flag),
-        CliRunError::Other(reason) => flag("geodex", reason),
-    }
-}
-
-/// Maps an [`OpError`] of the request back to the flag that produced the field.
-pub(crate) fn op_error(e: OpError, cost_flag: &str) -> DistanceError {
-    let reason = match &e {
-        OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => reason.clone(),
-        OpError::UnknownDataset { id, .. } => format!("dataset '{id}' not found"),
-        OpError::Cancelled => return DistanceError::Cancelled,
-    };
-    let field = e.field().unwrap_or_default();
-    flag(flag_of(field, cost_flag), reason)
-}
-
-/// The command-line flag behind a JSON field path of [`GridDistanceRequest`].
-pub(crate) fn flag_of(field: &str, cost_flag: &str) -> String {
-    let indexed = |prefix: &str| -> Option<usize> {
-        let rest = field.strip_prefix(prefix)?;
-        rest[..rest.find(']')?].parse().ok()
-    };
-    if let Some(i) = indexed("sources[") {
-        return format!("--source {}", i + 1);
-    }
-    if let Some(i) = indexed("stop.targets[") {
-        return format!("--target {}", i + 1);
-    }
-    if let Some(i) = indexed("spacing[") {
-        return format!("--spacing value {}", i + 1);
-    }
-    if let Some(i) = indexed("cost.shape[").filter(|_| cost_flag == "--shape") {
-        return format!("--shape value {}", i + 1);
-    }
-    let root = field.split(['.', '[']).next().unwrap_or(field);
-    match (root, field) {
-        ("cost", _) => cost_flag.into(),
-        ("metric", _) => "--tensor".into(),
-        ("spacing", _) => "--spacing".into(),
-        ("obstacles", _) => "--obstacles".into(),
-        (_, "stop.max_distance") => "--max-distance".into(),
-        ("order", _) => "--order".into(),
-        ("method", _) => "--method".into(),
-        ("connectivity", _) => "--connectivity".into(),
-        ("sources", _) => "--source".into(),
-        _ => field.into(),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn field_paths_map_to_flags() {
-        assert_eq!(flag_of("sources[1].point[0]", "--cost"), "--source 2");
-        assert_eq!(flag_of("sources[0]", "--cost"), "--source 1");
-        assert_eq!(flag_of("stop.targets[2]", "--cost"), "--target 3");
-        assert_eq!(flag_of("cost.dataset", "--cost"), "--cost");
-        assert_eq!(flag_of("cost.shape[1]", "--shape"), "--shape value 2");
-        assert_eq!(flag_of("spacing[1]", "--cost"), "--spacing value 2");
-        assert_eq!(flag_of("spacing", "--cost"), "--spacing");
-        assert_eq!(flag_of("stop.max_distance", "--cost"), "--max-distance");
-        assert_eq!(flag_of("obstacles", "--cost"), "--obstacles");
-        assert_eq!(flag_of("metric.dataset", "--tensor"), "--tensor");
-    }
 
     #[test]
     fn points_parse_or_name_their_occurrence() {

@@ -16,14 +16,17 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::run::{run_on, CliRunError};
-use super::segment::{array, cost_of, flag, read, write, write_json, SegmentCliError};
+use super::design::DesignFlag;
+use super::run::{run_on, FlagMap};
+use super::segment::{
+    array, check_outputs, cost_of, flag, read, write, write_json, SegmentCliError,
+};
 use super::SpacingFlag;
 use crate::ops::grid_cost_gradient::{GridCostGradientRequest, ObjectiveSpec, TargetSpec};
 use crate::ops::spec::cost::InterpretationSpec;
 use crate::ops::spec::scheme::SourceSpec;
 use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
-use crate::ops::{InputArray, OpError};
+use crate::ops::InputArray;
 
 /// Flags of `geodex cost-gradient`.
 #[derive(Debug, Clone, Args)]
@@ -42,8 +45,12 @@ pub struct CostGradientArgs {
     /// A Riemannian metric instead of a cost, as in `geodex distance`: an
     /// array of shape (N, M, 3) with m00, m01, m11 per cell, or (N, M, P, 6)
     /// in 3D. The gradient then has one more axis: one value per component.
-    #[arg(long, value_name = "T.npy", conflicts_with_all = ["cost", "speed"])]
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["cost", "speed", "design"])]
     pub tensor: Option<PathBuf>,
+    /// Design the cost from the --cost image; the gradient is then with
+    /// respect to the designed cost.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// Read --cost as a speed F = 1/W; the gradient is then with respect to F.
     #[arg(long)]
     pub speed: bool,
@@ -78,7 +85,7 @@ pub struct CostGradientArgs {
     /// Threads of the solver pool (default: all cores; the solve itself is sequential).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
-    /// Where to write the gradient (f64 NPY, the grid's shape).
+    /// Where to write the gradient (f64, the grid's shape; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "G.npy")]
     pub out: PathBuf,
     /// Where to write the distance map of the forward solve.
@@ -129,33 +136,26 @@ fn rows_of(
     Ok(values.chunks(w).map(<[f64]>::to_vec).collect())
 }
 
-/// The flag behind a request field.
-fn flag_of(field: &str, given: usize) -> String {
-    let index = |rest: &str| rest.split(']').next().and_then(|k| k.parse::<usize>().ok());
-    if let Some(k) = field.strip_prefix("sources[").and_then(index) {
-        return format!("--source {}", k + 1);
-    }
-    if let Some(k) = field.strip_prefix("targets[").and_then(index) {
-        return if field.contains(".observed") {
-            "--observed".into()
-        } else if k < given {
-            format!("--target {}", k + 1)
-        } else {
-            format!("--targets (row {})", k - given)
-        };
-    }
-    match field.split(['.', '[']).next().unwrap_or(field) {
-        "cost" => "--cost".into(),
-        "metric" => "--tensor".into(),
-        "spacing" => "--spacing".into(),
-        "obstacles" => "--obstacles".into(),
-        "order" => "--order".into(),
-        other => format!("--{}", other.replace('_', "-")),
-    }
+/// The flags behind the fields of [`GridCostGradientRequest`]; the first
+/// `given` targets came from `--target`, the others from `--targets` rows.
+fn gradient_flags(given: usize, cost_flag: &str) -> FlagMap {
+    FlagMap::new()
+        .each("sources", "--source")
+        .field("targets[].observed", "--observed")
+        .each_in("targets", "--target", 0..given)
+        .field("targets[].weight", "--weights")
+        .rows_from("targets", "--targets", given)
+        .field("targets", "--target")
+        .field("objective", "--misfit")
+        .metric(cost_flag)
 }
 
 /// `geodex cost-gradient`.
 pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--out", Some(&args.out)),
+        ("--distance", args.distance.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let (cost, metric) = match &args.tensor {
         Some(p) => (
@@ -165,7 +165,7 @@ pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
             })),
         ),
         None => {
-            let mut cost = cost_of(&args.cost, &args.shape, &mut inputs)?;
+            let mut cost = cost_of(&args.cost, &args.shape, &args.design, &mut inputs)?;
             if args.speed {
                 cost.interpretation = InterpretationSpec::Speed;
             }
@@ -259,21 +259,18 @@ pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
         order: args.order,
         distance: args.distance.is_some(),
     };
-    let ran =
-        run_on(Box::new(request), inputs, args.threads.map(|n| n.max(1))).map_err(|e| match e {
-            CliRunError::Op(OpError::Cancelled) => flag("geodex", "cancelled"),
-            CliRunError::Op(e) => {
-                let reason = match &e {
-                    OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => {
-                        reason.clone()
-                    }
-                    OpError::UnknownDataset { id, .. } => format!("'{id}' not found"),
-                    OpError::Cancelled => String::new(),
-                };
-                flag(flag_of(e.field().unwrap_or_default(), given), reason)
-            }
-            CliRunError::Other(reason) => flag("geodex", reason),
-        })?;
+    let cost_flag = if args.cost.is_some() {
+        "--cost"
+    } else {
+        "--shape"
+    };
+    let flags = gradient_flags(given, cost_flag);
+    let ran = run_on(
+        Box::new(request),
+        inputs,
+        args.threads.map(|n| n.max(1)),
+        &flags,
+    )?;
     let out = ran.output;
     if let Some(g) = array(&out, "gradient") {
         write("--out", &args.out, g)?;
@@ -295,4 +292,21 @@ pub fn run(args: &CostGradientArgs) -> Result<(), SegmentCliError> {
     );
     println!("geodex: wrote {}", args.out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_name_the_flag_or_the_row_that_gave_them() {
+        let m = gradient_flags(2, "--cost");
+        assert_eq!(m.flag_of("sources[0].point"), "--source 1");
+        assert_eq!(m.flag_of("targets[1].point[0]"), "--target 2");
+        assert_eq!(m.flag_of("targets[1].weight"), "--target 2");
+        assert_eq!(m.flag_of("targets[3].weight"), "--weights");
+        assert_eq!(m.flag_of("targets[3].point"), "--targets (row 1)");
+        assert_eq!(m.flag_of("targets[0].observed"), "--observed");
+        assert_eq!(m.flag_of("metric"), "--tensor");
+    }
 }

@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 
-use super::segment::{execute, flag, read, write, write_json, SegmentCliError};
+use super::run::FlagMap;
+use super::segment::{check_outputs, execute, flag, read, write, write_json, SegmentCliError};
 use super::SpacingFlag;
 use crate::ops::grid_fit_metric::GridFitMetricRequest;
 use crate::ops::grid_tomography::{GridTomographyRequest, SurveyPoint};
@@ -40,7 +41,7 @@ pub struct TomographyArgs {
     /// Order of the fast marching (1 or 2).
     #[arg(long, default_value_t = 1)]
     pub order: u8,
-    /// Where to write the recovered cost (NPY).
+    /// Where to write the recovered cost (.npy, .tiff, .png or .png16).
     #[arg(long, value_name = "COST.npy")]
     pub out: PathBuf,
     /// Where to write the report (JSON: misfit history, best constant); stdout when omitted.
@@ -78,7 +79,7 @@ pub struct FitMetricArgs {
     /// Largest number of descent steps.
     #[arg(long, default_value_t = 30)]
     pub max_iterations: usize,
-    /// Where to write the fitted cost (NPY).
+    /// Where to write the fitted cost (.npy, .tiff, .png or .png16).
     #[arg(long, value_name = "COST.npy")]
     pub out: Option<PathBuf>,
     /// Where to write the report (JSON: fitted design, loss, distances); stdout when omitted.
@@ -115,6 +116,7 @@ fn report(args_report: &Option<PathBuf>, doc: &serde_json::Value) -> Result<(), 
 
 /// `geodex tomography`.
 pub fn run_tomography(args: &TomographyArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[("--out", Some(&args.out))])?;
     let data: Data = read_json("--data", &args.data)?;
     let request = GridTomographyRequest {
         shape: args.shape.clone(),
@@ -129,7 +131,13 @@ pub fn run_tomography(args: &TomographyArgs) -> Result<(), SegmentCliError> {
         tolerance: 1e-6,
         order: args.order,
     };
-    let (out, seconds) = execute(&request, &HashMap::new(), None)?;
+    let flags = FlagMap::new()
+        .values("spacing", "--spacing")
+        .values("shape", "--shape")
+        .field("sources", "--data")
+        .field("receivers", "--data")
+        .field("times", "--data");
+    let (out, seconds) = execute(&request, &HashMap::new(), None, &flags)?;
     if let Some(cost) = out.array("cost") {
         write("--out", &args.out, cost)?;
     }
@@ -147,6 +155,7 @@ pub fn run_tomography(args: &TomographyArgs) -> Result<(), SegmentCliError> {
 
 /// `geodex fit-metric`.
 pub fn run_fit_metric(args: &FitMetricArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[("--out", args.out.as_deref())])?;
     let mut inputs = HashMap::new();
     let image = read("--image", &args.image, &mut inputs)?;
     let examples: Vec<Vec<Vec<f64>>> = read_json("--examples", &args.examples)?;
@@ -166,7 +175,14 @@ pub fn run_fit_metric(args: &FitMetricArgs) -> Result<(), SegmentCliError> {
         tolerance: 1e-6,
         order: 1,
     };
-    let (out, seconds) = execute(&request, &inputs, None)?;
+    let flags = FlagMap::new()
+        .values("spacing", "--spacing")
+        .field("design.value", "--value")
+        .field("design.power", "--power")
+        .field("design.epsilon", "--epsilon")
+        .field("design.sigma", "--sigma")
+        .field("design", "--value");
+    let (out, seconds) = execute(&request, &inputs, None, &flags)?;
     if let (Some(p), Some(cost)) = (&args.out, out.array("cost")) {
         write("--out", p, cost)?;
     }

@@ -19,7 +19,7 @@ use std::time::Instant;
 use clap::{Args, ValueEnum};
 
 use super::distance::method_value;
-use super::run::{run_operation, CliRunError};
+use super::run::{run_operation, FlagMap};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData};
 use crate::ops::spec::mesh::MeshDistanceRequest;
@@ -200,11 +200,15 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         weights: None,
         heat: args.laplacian.heat(args.heat_m),
     };
+    let vertices = args.source_vertices.len();
+    let flags = FlagMap::new()
+        .each_in("sources", "--source-vertex", 0..vertices)
+        .each_in("sources", "--source-face", vertices..usize::MAX)
+        .field("sources", "--source-vertex")
+        .field("heat.m", "--heat-m")
+        .field("heat", "--laplacian");
     let inputs = One(Arc::new(input));
-    let output = run_operation(Box::new(request), inputs).map_err(|e| match e {
-        CliRunError::Op(e) => e.to_string(),
-        CliRunError::Other(reason) => reason,
-    })?;
+    let output = run_operation(Box::new(request), inputs, &flags).map_err(|e| e.to_string())?;
     let written = Instant::now();
     for a in &output.arrays {
         match a.name.as_str() {

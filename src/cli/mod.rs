@@ -1,6 +1,11 @@
-//! The `geodex` command line: `serve` (the default), `distance` and `bench`.
+//! The `geodex` command line: `serve` (the default), the grid and mesh
+//! commands (`distance`, `metric`, `path`, `segment`, ...) and `bench`.
 //!
 //! A bare `geodex` (with or without serve flags) runs `geodex serve`.
+//! Shared pieces: [`SpacingFlag`], [`design::DesignFlag`] (`--design`), the
+//! array writer `output` (format by extension), the runner's way in `run`
+//! with its progress bar (`progress`) and the field-to-flag tables of errors
+//! (`flags`).
 
 use std::process::ExitCode;
 
@@ -10,10 +15,15 @@ use crate::config::ServeArgs;
 
 pub mod bench;
 mod bench_tensor;
+pub mod design;
 pub mod distance;
+mod flags;
 pub mod gradient;
 pub mod inverse;
+pub mod metric;
+mod output;
 pub mod path;
+mod progress;
 mod run;
 pub mod segment;
 
@@ -60,6 +70,8 @@ pub enum Command {
     Serve(ServeArgs),
     /// Compute a distance map from NPY files (batch use).
     Distance(distance::DistanceArgs),
+    /// The cost W designed from an image (edges, intensity, vesselness), to look at.
+    Metric(metric::MetricArgs),
     /// Time the solvers on fixed problems (see `geodex bench --help`).
     Bench(bench::BenchArgs),
     /// Exact Euclidean distance transform of a mask (binary, signed or multi-label).
@@ -107,6 +119,7 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Serve(args)) => crate::app::serve(args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
+        Some(Command::Metric(args)) => metric::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),
         Some(Command::Edt(args)) => segment::run_edt(&args).map_err(Into::into),
         Some(Command::Segment(args)) => segment::run_segment(&args).map_err(Into::into),

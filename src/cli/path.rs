@@ -23,12 +23,9 @@ use std::path::PathBuf;
 
 use clap::{ArgGroup, Args, ValueEnum};
 
-use super::distance::{
-    flag, op_error, parse_points, point_sources, run_error, DistanceError, SchemeFlags,
-};
-use super::run::{run_operation, CliRunError};
+use super::distance::{flag, parse_points, point_sources, DistanceError, SchemeFlags};
+use super::run::{run_operation, FlagMap};
 use crate::ops::grid_paths::{GridPathsRequest, PathFormat, PathOut};
-use crate::ops::spec::design::DesignSpec;
 
 /// Flags of `geodex path`.
 #[derive(Debug, Clone, Args)]
@@ -45,10 +42,6 @@ pub struct PathArgs {
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
     pub shape: Option<Vec<usize>>,
-    /// Build W from the --cost image: the JSON of a design section, e.g.
-    /// '{"kind": "vesselness", "scales": [1, 2], "polarity": "dark"}'.
-    #[arg(long, value_name = "JSON")]
-    pub design: Option<String>,
     /// A point source (index coordinates, axis 0 first); repeatable.
     #[arg(long = "source", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub sources: Vec<String>,
@@ -61,7 +54,7 @@ pub struct PathArgs {
     /// A point of a closed contour (instead of --source/--to); repeatable, at least 3.
     #[arg(long = "contour", value_name = "I,J[,K]", allow_hyphen_values = true)]
     pub contour: Vec<String>,
-    /// Spacing, scheme, speed and obstacles (as in `geodex distance`).
+    /// Spacing, scheme, speed, design and obstacles (as in `geodex distance`).
     #[command(flatten)]
     pub scheme: SchemeFlags,
     /// Compute the whole distance map instead of stopping at the end points.
@@ -90,30 +83,15 @@ pub enum FormatArg {
     Svg,
 }
 
-/// The flag behind a field of [`GridPathsRequest`].
-fn path_flag(field: &str, cost_flag: &str) -> Option<String> {
-    let indexed = |prefix: &str| -> Option<usize> {
-        let rest = field.strip_prefix(prefix)?;
-        rest[..rest.find(']')?].parse().ok()
-    };
-    if let Some(i) = indexed("ends[") {
-        return Some(format!("--to {}", i + 1));
-    }
-    if let Some(i) = indexed("waypoints[") {
-        return Some(format!("--waypoint {}", i + 1));
-    }
-    if let Some(i) = indexed("contour[") {
-        return Some(format!("--contour {}", i + 1));
-    }
-    match field {
-        "ends" => Some("--to".into()),
-        "waypoints" => Some("--waypoint".into()),
-        "contour" => Some("--contour".into()),
-        "format" => Some("--format".into()),
-        f if f.starts_with("cost.design") => Some("--design".into()),
-        f if f.starts_with("cost.dataset") => Some(cost_flag.into()),
-        _ => None,
-    }
+/// The flags behind the fields of [`GridPathsRequest`].
+fn path_flags(cost_flag: &str) -> FlagMap {
+    FlagMap::new()
+        .each("sources", "--source")
+        .each("ends", "--to")
+        .each("waypoints", "--waypoint")
+        .each("contour", "--contour")
+        .field("early_stop", "--no-early-stop")
+        .metric(cost_flag)
 }
 
 /// Runs `geodex path`.
@@ -122,17 +100,8 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
     let ends = parse_points("--to", &args.to)?;
     let waypoints = parse_points("--waypoint", &args.waypoints)?;
     let contour = parse_points("--contour", &args.contour)?;
-    let design: Option<DesignSpec> = match &args.design {
-        Some(json) => Some(
-            serde_json::from_str(json)
-                .map_err(|e| flag("--design", format!("not a design section: {e}")))?,
-        ),
-        None => None,
-    };
-    if design.is_some() && args.cost.is_none() {
-        return Err(flag("--design", "needs the image in --cost"));
-    }
     let scheme = &args.scheme;
+    let design = scheme.design.spec(args.cost.is_some(), "--cost")?;
     let metric = scheme.metric(
         args.cost.as_deref(),
         args.shape.as_deref(),
@@ -163,16 +132,7 @@ pub fn run(args: &PathArgs) -> Result<(), DistanceError> {
         },
         pinned: Default::default(),
     };
-    let output = run_operation(Box::new(request), inputs).map_err(|e| match e {
-        CliRunError::Op(e) => {
-            let mapped = e.field().and_then(|f| path_flag(f, cost_flag));
-            match (mapped, op_error(e, cost_flag)) {
-                (Some(f), DistanceError::Flag { reason, .. }) => flag(f, reason),
-                (_, other) => other,
-            }
-        }
-        other => run_error(other, cost_flag),
-    })?;
+    let output = run_operation(Box::new(request), inputs, &path_flags(cost_flag))?;
     let doc = output.document;
     let body = match args.format {
         FormatArg::Json => {
@@ -213,13 +173,12 @@ mod tests {
 
     #[test]
     fn request_fields_map_to_path_flags() {
-        assert_eq!(path_flag("ends[1]", "--cost").unwrap(), "--to 2");
-        assert_eq!(path_flag("waypoints[0]", "--cost").unwrap(), "--waypoint 1");
-        assert_eq!(path_flag("contour[2]", "--cost").unwrap(), "--contour 3");
-        assert_eq!(
-            path_flag("cost.design.scales[0]", "--cost").unwrap(),
-            "--design"
-        );
-        assert!(path_flag("sources[0]", "--cost").is_none());
+        let m = path_flags("--cost");
+        assert_eq!(m.flag_of("ends[1]"), "--to 2");
+        assert_eq!(m.flag_of("waypoints[0]"), "--waypoint 1");
+        assert_eq!(m.flag_of("contour[2]"), "--contour 3");
+        assert_eq!(m.flag_of("cost.design.scales[0]"), "--design");
+        assert_eq!(m.flag_of("sources[0]"), "--source 1");
+        assert_eq!(m.flag_of("format"), "--format");
     }
 }

@@ -13,7 +13,7 @@ use std::sync::Arc;
 use clap::{Args, ValueEnum};
 
 use super::mesh_distance::{load_mesh_file, One};
-use super::run::{run_operation, CliRunError};
+use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write as mesh_write;
 use crate::ops::mesh_remesh::{MeshRemeshRequest, RemeshAdaptationSpec};
 
@@ -60,18 +60,6 @@ pub struct RemeshArgs {
     pub stats: Option<PathBuf>,
 }
 
-fn flag_of(field: &str) -> String {
-    match field {
-        "mesh" => "--mesh".into(),
-        "count" => "--count".into(),
-        "edge_length" => "--edge-length".into(),
-        "strength" => "--strength".into(),
-        "max_ratio" => "--max-ratio".into(),
-        "lloyd_iterations" => "--lloyd-iterations".into(),
-        other => other.to_string(),
-    }
-}
-
 /// Runs `geodex remesh`.
 pub fn run(args: &RemeshArgs) -> Result<(), String> {
     let input = load_mesh_file(&args.mesh)?;
@@ -89,10 +77,9 @@ pub fn run(args: &RemeshArgs) -> Result<(), String> {
         lloyd_iterations: args.lloyd_iterations,
         hausdorff: true,
     };
-    let output = run_operation(Box::new(request), One(Arc::new(input))).map_err(|e| match e {
-        CliRunError::Op(e) => format!("{}: {e}", flag_of(e.field().unwrap_or_default())),
-        CliRunError::Other(reason) => reason,
-    })?;
+    // Every field of the request is spelled as its flag (`max_ratio`: `--max-ratio`).
+    let output = run_operation(Box::new(request), One(Arc::new(input)), &FlagMap::new())
+        .map_err(|e| e.to_string())?;
     let Some(mesh) = &output.mesh else {
         return Err("geodex: the operation returned no mesh".into());
     };

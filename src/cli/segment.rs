@@ -3,11 +3,15 @@
 //!
 //! Each command builds the request struct the HTTP service uses
 //! (`ops::grid_*`) and runs it with [`Operation::run`], so both accept and
-//! refuse the same inputs. Errors are one line naming the flag at fault.
+//! refuse the same inputs. Errors are one line naming the flag at fault
+//! (each command's [`FlagMap`]). Array outputs are written after their
+//! extension (`.npy`, `.tiff`, `.png`, `.png16`: [`super::output`]); a
+//! command that reads a cost designs it from an image with `--design`.
 //!
 //! ```text
 //! geodex edt --mask M.npy --spacing 1,0.5 --signed --out D.npy --features F.npy
 //! geodex segment --cost W.npy --seed 1:40,40 --seed 2:200,180 --out L.npy --contours L.geojson
+//! geodex segment --cost cells.png --design edges:mode=barrier --seed 1:40,40 --seed 2:90,90 --out L.png
 //! geodex skeleton --mask M.npy --out S.npy --graph G.json
 //! geodex offset --mask M.npy --radius 5 --out O.npy
 //! geodex plan --obstacles O.npy --radius 3 --start 10,5 --goal 50,55 --out path.json
@@ -23,9 +27,11 @@ use std::sync::Arc;
 
 use clap::Args;
 
+use super::design::DesignFlag;
+use super::output::{self, OutputError};
 use super::SpacingFlag;
 
-use super::run::{run_on, CliRunError};
+use super::run::{run_on, CliError, FlagMap};
 use crate::io::mesh::write as mesh_write;
 use crate::io::{self, ArrayData, Limits};
 use crate::numerics::grid::MAX_CELLS;
@@ -41,7 +47,7 @@ use crate::ops::grid_shading::{AnchorSpec, CameraSpec, DirectionSpec, GridShadin
 use crate::ops::grid_skeleton::GridSkeletonRequest;
 use crate::ops::spec::cost::{CostSpec, InterpretationSpec};
 use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
-use crate::ops::{InputArray, OpError, OpOutput, Operation};
+use crate::ops::{InputArray, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.
 #[derive(Debug, thiserror::Error)]
@@ -54,6 +60,37 @@ pub enum SegmentCliError {
         /// Why.
         reason: String,
     },
+}
+
+impl From<CliError> for SegmentCliError {
+    fn from(e: CliError) -> Self {
+        match e {
+            CliError::Flag { flag: name, reason } => flag(name, reason),
+            CliError::Cancelled => flag("geodex", "cancelled"),
+            CliError::Other(reason) => flag("geodex", reason),
+        }
+    }
+}
+
+impl From<OutputError> for SegmentCliError {
+    fn from(e: OutputError) -> Self {
+        flag(e.flag(), e.reason())
+    }
+}
+
+/// The table of the commands whose fields are their flags' names (and
+/// `spacing[k]` the k-th value of `--spacing`).
+fn grid_flags() -> FlagMap {
+    FlagMap::new().values("spacing", "--spacing")
+}
+
+/// The flag that gives the cost: `--cost`, else `--shape`.
+fn cost_flag(cost: &Option<PathBuf>) -> &'static str {
+    if cost.is_some() {
+        "--cost"
+    } else {
+        "--shape"
+    }
 }
 
 pub(super) fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
@@ -81,10 +118,10 @@ pub struct EdtArgs {
     /// Threads (default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
-    /// Where to write the distance (f64 NPY).
+    /// Where to write the distance (f64; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "D.npy")]
     pub out: PathBuf,
-    /// Where to write the feature transform (int64 NPY: C-order linear index
+    /// Where to write the feature transform (int64 by extension as --out: C-order linear index
     /// of the nearest feature cell, -1 if none).
     #[arg(long, value_name = "F.npy")]
     pub features: Option<PathBuf>,
@@ -99,6 +136,9 @@ pub struct SegmentArgs {
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M[,P]", value_delimiter = ',')]
     pub shape: Option<Vec<usize>>,
+    /// Design the cost from the --cost image.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// A labelled seed point `LABEL:I,J[,K]`; repeat.
     #[arg(long = "seed", value_name = "LABEL:I,J[,K]")]
     pub seeds: Vec<String>,
@@ -114,7 +154,7 @@ pub struct SegmentArgs {
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the labels (int32 NPY).
+    /// Where to write the labels (int32; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "L.npy")]
     pub out: PathBuf,
     /// Where to write the distance to the nearest seed.
@@ -143,10 +183,10 @@ pub struct SkeletonArgs {
     /// The same as a fraction of the boundary length (2D) or inscribed diameter (3D).
     #[arg(long, default_value_t = 0.08, value_name = "F")]
     pub min_boundary_fraction: f64,
-    /// Where to write the skeleton (uint8 NPY).
+    /// Where to write the skeleton (uint8; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "S.npy")]
     pub out: PathBuf,
-    /// Where to write the radius function (f64 NPY).
+    /// Where to write the radius function (f64; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "R.npy")]
     pub radius: Option<PathBuf>,
     /// Where to write the skeleton graph (JSON, 2D).
@@ -172,13 +212,16 @@ pub struct OffsetArgs {
     /// The metric of --geodesic.
     #[arg(long, value_name = "W.npy", requires = "geodesic")]
     pub cost: Option<PathBuf>,
+    /// Design the cost from the --cost image.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// Obstacle mask (blocks the propagation).
     #[arg(long, value_name = "O.npy")]
     pub obstacles: Option<PathBuf>,
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the offset shape (uint8 NPY).
+    /// Where to write the offset shape (uint8; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "O.npy")]
     pub out: PathBuf,
 }
@@ -233,8 +276,11 @@ pub struct SampleArgs {
     /// A Riemannian metric instead of a cost, as in `geodex distance`: an
     /// array of shape (N, M, 3) with m11, m12, m22 per cell, or (N, M, P, 6)
     /// in 3D; every cell symmetric positive definite.
-    #[arg(long, value_name = "T.npy", conflicts_with = "cost")]
+    #[arg(long, value_name = "T.npy", conflicts_with_all = ["cost", "design"])]
     pub tensor: Option<PathBuf>,
+    /// Design the cost from the --cost image.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// Number of samples.
     #[arg(long, value_name = "K")]
     pub count: Option<usize>,
@@ -247,10 +293,10 @@ pub struct SampleArgs {
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the distance to the nearest sample (f64 NPY).
+    /// Where to write the distance to the nearest sample (f64; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "U.npy")]
     pub out: PathBuf,
-    /// Where to write the Voronoi labels (int32 NPY).
+    /// Where to write the Voronoi labels (int32; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "L.npy")]
     pub labels: Option<PathBuf>,
     /// Where to write the samples and statistics (JSON).
@@ -267,6 +313,9 @@ pub struct GroupArgs {
     /// Grid shape for a unit cost, instead of --cost.
     #[arg(long, value_name = "N,M", value_delimiter = ',')]
     pub shape: Option<Vec<usize>>,
+    /// Design the cost from the --cost image.
+    #[command(flatten)]
+    pub design: DesignFlag,
     /// The key points: a JSON array of [row, column] pairs, or an object
     /// {"key_points": [...], "orientations": [...]} (tangent angles in
     /// radians, from axis 0 towards axis 1) for the anisotropic grouping.
@@ -302,10 +351,10 @@ pub struct GroupArgs {
     /// Where to write the contours as GeoJSON.
     #[arg(long, value_name = "C.geojson")]
     pub geojson: Option<PathBuf>,
-    /// Where to write the Voronoi labels (int32 NPY).
+    /// Where to write the Voronoi labels (int32; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "L.npy")]
     pub labels: Option<PathBuf>,
-    /// Where to write the distance to the nearest key point (f64 NPY).
+    /// Where to write the distance to the nearest key point (f64; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "U.npy")]
     pub distance: Option<PathBuf>,
 }
@@ -359,7 +408,7 @@ pub struct MeshArgs {
     /// Where to write the mesh: `.ply` (with the image value per vertex), `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "MESH.ply")]
     pub out: PathBuf,
-    /// Where to write the piecewise-linear approximation of the image (f64 NPY).
+    /// Where to write the piecewise-linear approximation of the image (f64; .npy, .tiff, .png or .png16).
     #[arg(long, value_name = "A.npy")]
     pub approximation: Option<PathBuf>,
     /// Where to write a PNG of the mesh drawn over the image.
@@ -467,7 +516,7 @@ pub struct ShadingArgs {
     /// Physical size of a pixel along each axis (orthographic).
     #[command(flatten)]
     pub spacing: SpacingFlag,
-    /// Where to write the height (orthographic) or depth (perspective), f64 NPY.
+    /// Where to write the height (orthographic) or depth (perspective), f64 (.npy, .tiff, .png or .png16).
     #[arg(long, value_name = "Z.npy")]
     pub out: PathBuf,
     /// Where to write the surface mesh: `.ply`, `.obj`, `.json` or `.glb`.
@@ -480,6 +529,7 @@ pub struct ShadingArgs {
 
 /// `geodex shape-from-shading`.
 pub fn run_shape_from_shading(args: &ShadingArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[("--out", Some(&args.out))])?;
     let mut inputs = HashMap::new();
     let height = args.anchor_height;
     let request = GridShadingRequest {
@@ -509,7 +559,14 @@ pub fn run_shape_from_shading(args: &ShadingArgs) -> Result<(), SegmentCliError>
         max_iterations: args.max_iterations,
         mesh: args.mesh.is_some(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let flags = grid_flags()
+        .field("image", "--image")
+        .field("camera.principal_point", "--principal-point")
+        .field("camera.attenuation", "--no-attenuation")
+        .field("camera", "--focal")
+        .field("anchors.height", "--anchor-height")
+        .field("direction", "--down");
+    let (out, secs) = execute(&request, &inputs, None, &flags)?;
     let name = if args.focal.is_some() {
         "depth"
     } else {
@@ -570,10 +627,17 @@ pub(super) fn read(
     Ok(id)
 }
 
+/// Writes an array output after its extension ([`output::write_array`]).
 pub(super) fn write(name: &str, path: &Path, array: &ArrayData) -> Result<(), SegmentCliError> {
-    let bytes = io::encode_npy(array).map_err(|e| flag(name, e.to_string()))?;
-    std::fs::write(path, bytes)
-        .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
+    Ok(output::write_array(name, path, array)?)
+}
+
+/// Checks the extensions of a command's array outputs before it runs.
+pub(super) fn check_outputs(outputs: &[(&str, Option<&Path>)]) -> Result<(), SegmentCliError> {
+    for (name, path) in outputs {
+        output::check(name, *path)?;
+    }
+    Ok(())
 }
 
 pub(super) fn write_json(
@@ -586,64 +650,20 @@ pub(super) fn write_json(
         .map_err(|e| flag(name, format!("cannot write '{}': {e}", path.display())))
 }
 
-/// The flag behind a request field (`seeds[2]` -> `--seed 3`).
-fn flag_of(field: &str) -> String {
-    if let Some(rest) = field.strip_prefix("seeds[") {
-        if let Some(k) = rest.split(']').next().and_then(|k| k.parse::<usize>().ok()) {
-            return format!("--seed {}", k + 1);
-        }
-    }
-    let root = field.split(['.', '[']).next().unwrap_or(field);
-    match root {
-        "mask" => "--mask".into(),
-        "spacing" => "--spacing".into(),
-        "cost" => "--cost".into(),
-        "metric" => "--tensor".into(),
-        "seed_image" => "--seed-image".into(),
-        "obstacles" => "--obstacles".into(),
-        "max_distance" => "--max-distance".into(),
-        "radius" => "--radius".into(),
-        "start" => "--start".into(),
-        "goal" => "--goal".into(),
-        "count" => "--count".into(),
-        "dataset" | "image" => "--image".into(),
-        "sources" | "receivers" | "times" => "--data".into(),
-        "examples" => "--examples".into(),
-        "design" => "--value".into(),
-        "camera" => "--focal".into(),
-        "light" => "--light".into(),
-        "anchors" => "--anchors".into(),
-        "key_points" | "orientations" => "--key-points".into(),
-        "min_boundary_length" => "--min-boundary-length".into(),
-        "min_boundary_fraction" => "--min-boundary-fraction".into(),
-        other => other.replace('_', "-"),
-    }
-}
-
+/// Runs `request` through the runner; a refusal names the flag `flags`
+/// gives for its field. The output and the seconds it ran.
 pub(super) fn execute<O: Operation + Clone + std::fmt::Debug>(
     request: &O,
     inputs: &HashMap<String, InputArray>,
     threads: Option<usize>,
+    flags: &FlagMap,
 ) -> Result<(OpOutput, f64), SegmentCliError> {
     let ran = run_on(
         Box::new(request.clone()),
         inputs.clone(),
         threads.map(|n| n.max(1)),
-    )
-    .map_err(|e| match e {
-        CliRunError::Op(OpError::Cancelled) => flag("geodex", "cancelled"),
-        CliRunError::Op(e) => {
-            let reason = match &e {
-                OpError::Invalid { reason, .. } | OpError::TooLarge { reason, .. } => {
-                    reason.clone()
-                }
-                OpError::UnknownDataset { id, .. } => format!("'{id}' not found"),
-                OpError::Cancelled => String::new(),
-            };
-            flag(flag_of(e.field().unwrap_or_default()), reason)
-        }
-        CliRunError::Other(reason) => flag("geodex", reason),
-    })?;
+        flags,
+    )?;
     Ok((ran.output, ran.timing.run_seconds))
 }
 
@@ -663,19 +683,22 @@ fn save(
     Ok(())
 }
 
-/// The `cost` of a request from `--cost W.npy` or `--shape N,M[,P]` (unit cost).
+/// The `cost` of a request from `--cost W.npy` (designed with `--design`)
+/// or `--shape N,M[,P]` (unit cost).
 pub(super) fn cost_of(
     cost: &Option<PathBuf>,
     shape: &Option<Vec<usize>>,
+    design: &DesignFlag,
     inputs: &mut HashMap<String, InputArray>,
 ) -> Result<CostSpec, SegmentCliError> {
+    let design = design.spec(cost.is_some(), "--cost")?;
     Ok(match (cost, shape) {
         (Some(p), _) => CostSpec {
             dataset: Some(read("--cost", p, inputs)?),
             constant: None,
             shape: None,
             interpretation: InterpretationSpec::Cost,
-            design: None,
+            design,
         },
         (None, Some(s)) => CostSpec {
             dataset: None,
@@ -690,6 +713,10 @@ pub(super) fn cost_of(
 
 /// `geodex edt`.
 pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--out", Some(&args.out)),
+        ("--features", args.features.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let id = read("--mask", &args.mask, &mut inputs)?;
     let request = GridEdtRequest {
@@ -704,7 +731,8 @@ pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
         },
         features: args.features.is_some(),
     };
-    let (out, secs) = execute(&request, &inputs, args.threads)?;
+    let flags = grid_flags().field("mode", "--signed");
+    let (out, secs) = execute(&request, &inputs, args.threads, &flags)?;
     save(&out, "distance", "--out", &Some(args.out.clone()))?;
     save(&out, "features", "--features", &args.features)?;
     let transform = out.document["stats"]["seconds"].as_f64().unwrap_or(secs);
@@ -717,10 +745,23 @@ pub fn run_edt(args: &EdtArgs) -> Result<(), SegmentCliError> {
     Ok(())
 }
 
+/// The flags behind the fields of [`GridSegmentRequest`].
+fn segment_flags(cost: &Option<PathBuf>) -> FlagMap {
+    grid_flags()
+        .each("seeds", "--seed")
+        .field("seed_image", "--seed-image")
+        .metric(cost_flag(cost))
+}
+
 /// `geodex segment`.
 pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--out", Some(&args.out)),
+        ("--distance", args.distance.as_deref()),
+        ("--confidence", args.confidence.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
-    let cost = cost_of(&args.cost, &args.shape, &mut inputs)?;
+    let cost = cost_of(&args.cost, &args.shape, &args.design, &mut inputs)?;
     let mut seeds = Vec::new();
     for (i, s) in args.seeds.iter().enumerate() {
         let bad = || {
@@ -759,7 +800,7 @@ pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
         order: 2,
         contours: args.contours.is_some(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let (out, secs) = execute(&request, &inputs, None, &segment_flags(&args.cost))?;
     save(&out, "labels", "--out", &Some(args.out.clone()))?;
     save(&out, "distance", "--distance", &args.distance)?;
     save(&out, "confidence", "--confidence", &args.confidence)?;
@@ -777,6 +818,10 @@ pub fn run_segment(args: &SegmentArgs) -> Result<(), SegmentCliError> {
 
 /// `geodex skeleton`.
 pub fn run_skeleton(args: &SkeletonArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--out", Some(&args.out)),
+        ("--radius", args.radius.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let request = GridSkeletonRequest {
         mask: read("--mask", &args.mask, &mut inputs)?,
@@ -784,7 +829,7 @@ pub fn run_skeleton(args: &SkeletonArgs) -> Result<(), SegmentCliError> {
         min_boundary_length: args.min_boundary_length,
         min_boundary_fraction: args.min_boundary_fraction,
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let (out, secs) = execute(&request, &inputs, None, &grid_flags())?;
     save(&out, "skeleton", "--out", &Some(args.out.clone()))?;
     save(&out, "radius", "--radius", &args.radius)?;
     if let (Some(p), Some(g)) = (&args.graph, out.document.get("graph")) {
@@ -801,6 +846,8 @@ pub fn run_skeleton(args: &SkeletonArgs) -> Result<(), SegmentCliError> {
 
 /// `geodex offset`.
 pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[("--out", Some(&args.out))])?;
+    let design = args.design.spec(args.cost.is_some(), "--cost")?;
     let mut inputs = HashMap::new();
     let request = GridOffsetRequest {
         mask: read("--mask", &args.mask, &mut inputs)?,
@@ -821,7 +868,7 @@ pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
                 constant: None,
                 shape: None,
                 interpretation: InterpretationSpec::Cost,
-                design: None,
+                design,
             }),
             None => None,
         },
@@ -831,7 +878,12 @@ pub fn run_offset(args: &OffsetArgs) -> Result<(), SegmentCliError> {
         },
         spacing: args.spacing.spacing.clone(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let flags = grid_flags()
+        .field("operation", "--erode")
+        .field("metric", "--geodesic")
+        .field("cost.design", "--design")
+        .field("cost", "--cost");
+    let (out, secs) = execute(&request, &inputs, None, &flags)?;
     save(&out, "offset", "--out", &Some(args.out.clone()))?;
     println!(
         "geodex: wrote {} ({} -> {} cells, {:.3} s)",
@@ -853,7 +905,7 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
         goal: args.goal.clone(),
         spacing: args.spacing.spacing.clone(),
     };
-    let (out, _) = execute(&request, &inputs, None)?;
+    let (out, _) = execute(&request, &inputs, None, &grid_flags())?;
     match &args.out {
         Some(p) => {
             write_json("--out", p, &out.document)?;
@@ -871,6 +923,10 @@ pub fn run_plan(args: &PlanArgs) -> Result<(), SegmentCliError> {
 
 /// `geodex sample`.
 pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--out", Some(&args.out)),
+        ("--labels", args.labels.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let (cost, metric) = match &args.tensor {
         Some(p) => (
@@ -879,7 +935,10 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
                 dataset: read("--tensor", p, &mut inputs)?,
             })),
         ),
-        None => (Some(cost_of(&args.cost, &args.shape, &mut inputs)?), None),
+        None => (
+            Some(cost_of(&args.cost, &args.shape, &args.design, &mut inputs)?),
+            None,
+        ),
     };
     let request = GridSampleRequest {
         cost,
@@ -893,7 +952,11 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
         radius: args.radius,
         seeds: Vec::new(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let flags = grid_flags()
+        .field("count", "--count")
+        .field("radius", "--radius")
+        .metric(cost_flag(&args.cost));
+    let (out, secs) = execute(&request, &inputs, None, &flags)?;
     save(&out, "distance", "--out", &Some(args.out.clone()))?;
     save(&out, "labels", "--labels", &args.labels)?;
     if let Some(p) = &args.samples {
@@ -911,6 +974,10 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
 
 /// `geodex group`.
 pub fn run_group(args: &GroupArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--labels", args.labels.as_deref()),
+        ("--distance", args.distance.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let text = std::fs::read(&args.key_points).map_err(|e| {
         flag(
@@ -947,7 +1014,7 @@ pub fn run_group(args: &GroupArgs) -> Result<(), SegmentCliError> {
         })?),
     };
     let request = GridGroupRequest {
-        cost: cost_of(&args.cost, &args.shape, &mut inputs)?,
+        cost: cost_of(&args.cost, &args.shape, &args.design, &mut inputs)?,
         spacing: args.spacing.spacing.clone(),
         obstacles: match &args.obstacles {
             Some(p) => Some(read("--obstacles", p, &mut inputs)?),
@@ -964,7 +1031,11 @@ pub fn run_group(args: &GroupArgs) -> Result<(), SegmentCliError> {
         min_points: args.min_points,
         order: 2,
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let flags = grid_flags()
+        .field("key_points", "--key-points")
+        .field("orientations", "--key-points")
+        .metric(cost_flag(&args.cost));
+    let (out, secs) = execute(&request, &inputs, None, &flags)?;
     write_json("--out", &args.out, &out.document)?;
     if let Some(p) = &args.geojson {
         write_json("--geojson", p, &out.document["geojson"])?;
@@ -1027,7 +1098,7 @@ pub fn run_domain_mesh(args: &DomainMeshArgs) -> Result<(), SegmentCliError> {
         simplify: args.simplify,
         spacing: args.spacing.spacing.clone(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let (out, secs) = execute(&request, &inputs, None, &grid_flags())?;
     let Some(mesh) = &out.mesh else {
         return Err(flag("geodex", "the operation returned no mesh"));
     };
@@ -1066,6 +1137,10 @@ fn write_mesh_file(
 
 /// `geodex mesh`.
 pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
+    check_outputs(&[
+        ("--approximation", args.approximation.as_deref()),
+        ("--picture", args.picture.as_deref()),
+    ])?;
     let mut inputs = HashMap::new();
     let request = GridMeshRequest {
         dataset: read("--image", &args.image, &mut inputs)?,
@@ -1084,7 +1159,10 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         compare_uniform: !args.no_compare,
         spacing: args.spacing.spacing.clone(),
     };
-    let (out, secs) = execute(&request, &inputs, None)?;
+    let flags = grid_flags()
+        .field("dataset", "--image")
+        .field("compare_uniform", "--no-compare");
+    let (out, secs) = execute(&request, &inputs, None, &flags)?;
     let Some(mesh) = &out.mesh else {
         return Err(flag("geodex", "the operation returned no mesh"));
     };
@@ -1100,12 +1178,7 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         "--approximation",
         &args.approximation,
     )?;
-    if let (Some(p), Some(picture)) = (&args.picture, array(&out, "picture")) {
-        let png = io::render_png(picture, &io::RenderOptions::default())
-            .map_err(|e| flag("--picture", e.to_string()))?;
-        std::fs::write(p, png)
-            .map_err(|e| flag("--picture", format!("cannot write '{}': {e}", p.display())))?;
-    }
+    save(&out, "picture", "--picture", &args.picture)?;
     if let Some(p) = &args.stats {
         write_json("--stats", p, &out.document)?;
     }
@@ -1127,14 +1200,32 @@ mod tests {
     use super::*;
 
     #[test]
-    fn fields_map_to_flags() {
-        assert_eq!(flag_of("seeds[1].point[0]"), "--seed 2");
-        assert_eq!(flag_of("mask"), "--mask");
-        assert_eq!(flag_of("spacing[1]"), "--spacing");
-        assert_eq!(flag_of("cost.dataset"), "--cost");
-        assert_eq!(flag_of("radius"), "--radius");
-        assert_eq!(flag_of("min_boundary_fraction"), "--min-boundary-fraction");
-        assert_eq!(flag_of("camera.focal"), "--focal");
-        assert_eq!(flag_of("light"), "--light");
+    fn segment_fields_map_to_flags_and_reasons_to_flags_too() {
+        let m = segment_flags(&Some(PathBuf::from("w.npy")));
+        assert_eq!(m.flag_of("seeds[1].point[0]"), "--seed 2");
+        assert_eq!(m.flag_of("seeds"), "--seed");
+        assert_eq!(m.flag_of("seed_image"), "--seed-image");
+        assert_eq!(m.flag_of("cost.dataset"), "--cost");
+        assert_eq!(m.flag_of("cost.design.sigma"), "--design");
+        assert_eq!(m.flag_of("spacing[1]"), "--spacing value 2");
+        assert_eq!(m.flag_of("max_distance"), "--max-distance");
+        assert_eq!(
+            m.reword("give labelled `seeds`, a `seed_image`, or both"),
+            "give labelled `--seed`, a `--seed-image`, or both"
+        );
+        assert_eq!(
+            segment_flags(&None).flag_of("cost.shape[0]"),
+            "--shape value 1"
+        );
+    }
+
+    #[test]
+    fn other_grid_commands_map_their_renamed_fields() {
+        assert_eq!(grid_flags().flag_of("mask"), "--mask");
+        assert_eq!(
+            grid_flags().flag_of("min_boundary_fraction"),
+            "--min-boundary-fraction"
+        );
+        assert_eq!(grid_flags().flag_of("radius"), "--radius");
     }
 }

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use clap::Args;
 
 use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, One};
-use super::run::{run_operation, CliRunError};
+use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write::encode_by_extension;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
@@ -97,15 +97,10 @@ fn method(m: MeshMethodArg) -> MeshMethodSpec {
 /// Runs `request` on the mesh file; a refused field is named as its flag.
 fn run_on_mesh(request: Box<dyn DynOperation>, mesh: &std::path::Path) -> Result<OpOutput, String> {
     let input = load_mesh_file(mesh)?;
-    run_operation(request, One(Arc::new(input))).map_err(|e| match e {
-        CliRunError::Op(e) => match e.field().map(|f| f.split(['.', '[']).next().unwrap_or(f)) {
-            Some("sources") => format!("--source-vertex: {e}"),
-            Some("heat") => format!("--heat-m: {e}"),
-            Some(flag) => format!("--{flag}: {e}"),
-            None => e.to_string(),
-        },
-        CliRunError::Other(reason) => reason,
-    })
+    let flags = FlagMap::new()
+        .field("sources", "--source-vertex")
+        .field("heat", "--heat-m");
+    run_operation(request, One(Arc::new(input)), &flags).map_err(|e| e.to_string())
 }
 
 /// Runs `geodex distance-matrix`.
