@@ -298,6 +298,46 @@ def main():
         page.shot("image-offset")
         page.check_clean(f"mask: signed EDT in [{lo:.1f}, {hi:.1f}], skeleton, offset")
 
+        # ---- the structure-tensor metric as a picture of glyphs --------------------------
+        d.find_element(By.CSS_SELECTOR, "input[name=tool][value=path]").click()
+        Select(d.find_element(By.ID, "sample")).select_by_value("vessels")
+        Select(d.find_element(By.ID, "sample-size")).select_by_visible_text("256")
+        d.find_element(By.ID, "load-sample").click()
+        page.wait("GX.imageState.image && GX.imageState.image.name === 'vessels-256.png' && "
+                  "document.getElementById('metric-kind').value === 'vesselness'", "the vessels sample")
+        d.find_element(By.ID, "show-metric").click()
+        Select(d.find_element(By.ID, "metric-kind")).select_by_value("structure_tensor")
+        page.wait("GX.imageState.metricPicture && GX.imageState.metricPicture.kind === 'structure_tensor' && "
+                  "document.getElementById('base').complete && document.getElementById('base').naturalWidth > 0",
+                  "the tensor glyphs")
+        tensor = page.js("""(function(){
+            const img = document.getElementById('base'), mp = GX.imageState.metricPicture;
+            const c = document.createElement('canvas'); c.width = img.naturalWidth; c.height = img.naturalHeight;
+            const x = c.getContext('2d'); x.drawImage(img, 0, 0);
+            const d = x.getImageData(0, 0, c.width, c.height).data; let glyph = 0, bg = 0;
+            for (let k = 0; k < d.length; k += 4) {
+              const chroma = Math.max(d[k], d[k+1], d[k+2]) - Math.min(d[k], d[k+1], d[k+2]);
+              if (chroma > 25) glyph++; else if (d[k] === 236 && d[k+1] === 236) bg++;
+            }
+            const r = img.getBoundingClientRect(), st = document.getElementById('stage').getBoundingClientRect();
+            return {src: img.src, id: mp.id, shape: mp.shape, lattice: mp.lattice, w: c.width, h: c.height,
+                    glyph: glyph / (c.width * c.height), bg: bg / (c.width * c.height), fit: getComputedStyle(img).objectFit,
+                    box: [r.width, r.height, st.width, st.height],
+                    bar: document.getElementById('colourbar-box').style.visibility,
+                    status: document.getElementById('status').textContent}; })()""")
+        assert tensor["id"] in tensor["src"] and "format=png" in tensor["src"], tensor
+        assert tensor["shape"] == [256, 256, 3], tensor
+        # Glyphs (coloured by anisotropy) on the light grey ground, not the grey image.
+        assert tensor["glyph"] > 0.03 and tensor["bg"] > 0.1, tensor
+        assert tensor["fit"] == "cover" and abs(tensor["box"][1] - tensor["box"][3]) <= 1.5, tensor
+        assert tensor["bar"] == "visible" and "anisotropy" in tensor["status"], tensor
+        page.shot("image-tensor-metric")
+        d.find_element(By.ID, "show-metric").click()
+        page.wait("!GX.imageState.metricPicture && !document.getElementById('base').classList.contains('glyphs')",
+                  "the image again")
+        page.check_clean(f"structure-tensor metric: {tensor['w']}×{tensor['h']} picture of glyphs every "
+                         f"{tensor['lattice']} cells ({tensor['glyph']:.0%} glyph pixels)")
+
         # ---- latency on a 1024² image with the map cached --------------------------------
         d.find_element(By.CSS_SELECTOR, "input[name=tool][value=path]").click()
         Select(d.find_element(By.ID, "sample")).select_by_value("rooms")
@@ -362,6 +402,80 @@ def main():
         page.shot("mesh-samples")
         page.check_clean(f"mesh: {nverts} vertices, click colours {after:.0%} of the canvas, path of {npath} points, "
                          f"methods {worst}, 40 samples")
+
+        # ---- remesh: the viewer shows the new mesh, with its stats ---------------------
+        target = 300
+        page.set_input("remesh-count", target)
+        d.find_element(By.ID, "remesh-run").click()
+        page.wait("GX.meshView && GX.meshView.kind === 'remeshed'", "the remeshed mesh")
+        shown = page.js("[GX.meshState.viewer.n, GX.meshState.viewer.faces.length, GX.meshRemesh.stats.vertices, "
+                        "GX.meshRemesh.stats.triangles, GX.meshState.viewer.showEdges]")
+        assert abs(shown[0] - target) <= 0.15 * target and shown[0] != nverts, f"remeshed to {shown} for {target}"
+        assert shown[0] == shown[2] and shown[1] == shown[3] and shown[4], shown
+        status = page.js("document.getElementById('status').textContent")
+        assert f"{shown[0]} vertices" in status and "Hausdorff" in status, status
+        cells = page.js("Array.from(document.querySelectorAll('#mesh-derived td')).map(t => t.textContent)")
+        assert "Hausdorff to the input" in cells and "topology" in cells, cells
+        page.js("window.scrollTo(0, 0)")
+        page.shot("mesh-remeshed")
+        # The remeshed mesh is measurable: a click gives a distance on its vertices.
+        page.js("GX.meshShown = null")
+        ActionChains(d, duration=0).move_to_element_with_offset(canvas, 0, 0).click().perform()
+        page.wait("GX.meshShown", "a distance on the remeshed mesh")
+        assert page.js("GX.meshShown.reached") == shown[0]
+        d.find_element(By.ID, "mesh-original").click()
+        page.wait(f"GX.meshView.kind === 'original' && GX.meshState.viewer.n === {nverts}", "the original mesh again")
+        page.check_clean(f"remesh: {nverts} → {shown[0]} vertices ({shown[1]} triangles) for a target of {target}, "
+                         f"stats shown, back to the original")
+
+        # ---- canonical form: the rolled sheet unrolls ------------------------------------
+        Select(d.find_element(By.ID, "mesh-method")).select_by_value("fast_marching")
+        Select(d.find_element(By.ID, "mesh-sample")).select_by_value("rolled sheet")
+        d.find_element(By.ID, "mesh-load-sample").click()
+        page.wait("GX.meshView && GX.meshView.kind === 'original' && "
+                  "GX.meshState.mesh.vertices.length === 1296", "the rolled sheet")
+        # Click a face in front: a face of the outer turn's middle, projected to the canvas.
+        fx, fy = page.js("""(function(){
+            const v = GX.meshState.viewer, f = v.faces[2 * (70 * 17 + 8)], m = v.matrices().mvp;
+            const p = [0, 1, 2].map(k => (v.pos[3 * f[0] + k] + v.pos[3 * f[1] + k] + v.pos[3 * f[2] + k]) / 3);
+            const q = [0, 1, 2, 3].map(j => m[j] * p[0] + m[4 + j] * p[1] + m[8 + j] * p[2] + m[12 + j]);
+            const c = v.canvas;
+            return [Math.round(q[0] / q[3] * c.clientWidth / 2), Math.round(-q[1] / q[3] * c.clientHeight / 2)]; })()""")
+        page.js("GX.meshShown = null")
+        ActionChains(d, duration=0).move_to_element_with_offset(canvas, fx, fy).click().perform()
+        page.wait("GX.meshShown && GX.meshShown.method === 'fast_marching'", "the distance on the rolled sheet")
+        page.shot("mesh-rolled-sheet")
+        before = page.js("Array.from(GX.meshState.viewer.pos)")
+        extent_js = """(function(){ const v = GX.meshState.mesh.vertices; const e = [0, 1, 2].map(k => {
+            let lo = Infinity, hi = -Infinity; for (const p of v) { lo = Math.min(lo, p[k]); hi = Math.max(hi, p[k]); }
+            return hi - lo; }); return e.sort((a, b) => a - b); })()"""
+        rolled = page.js(extent_js)
+        d.find_element(By.ID, "mesh-edges").click()  # off: at the canonical form's scale they hide the colours
+        d.find_element(By.ID, "embed-run").click()
+        page.wait("GX.meshView.kind === 'canonical'", "the canonical form", 120)
+        after_pos = page.js("Array.from(GX.meshState.viewer.pos)")
+        assert len(after_pos) == len(before) == 3 * 1296
+        moved = statistics.mean(abs(a - b) for a, b in zip(after_pos, before))
+        flat = page.js(extent_js)
+        emb = page.js("GX.meshEmbed")
+        # Rolling bends without stretching: the canonical form is the flat sheet,
+        # much longer than the roll is wide, and thin.
+        assert moved > 0.05, f"the shown coordinates barely changed ({moved})"
+        assert flat[2] > 2 * rolled[2] and flat[0] < 0.15 * flat[2], f"rolled extents {rolled}, canonical {flat}"
+        assert emb["stress"] < 0.05 and emb["dimensions"] == 3, emb
+        status = page.js("document.getElementById('status').textContent")
+        assert "stress" in status and "explained variance" in status, status
+        cells = page.js("Array.from(document.querySelectorAll('#mesh-derived td')).map(t => t.textContent)")
+        assert "stress" in cells and "explained variance" in cells, cells
+        coloured = page.js(chroma_js)
+        assert coloured > 0.05, f"the distance is not shown on the canonical form ({coloured:.3f})"
+        page.js("window.scrollTo(0, 0)")
+        page.shot("mesh-canonical")
+        d.find_element(By.ID, "mesh-original").click()
+        page.wait("GX.meshView.kind === 'original'", "the rolled sheet again")
+        page.check_clean(f"canonical form: the rolled sheet (extents {', '.join(f'{e:.2f}' for e in rolled)}) unrolls to "
+                         f"{', '.join(f'{e:.2f}' for e in flat)}, stress {emb['stress']:.4f}, "
+                         f"explained variance {emb['explained_variance']:.3f}")
 
         # ---- jobs: one runs to the end, one is cancelled ---------------------------------
         d.find_element(By.CSS_SELECTOR, "nav button[data-view=jobs]").click()

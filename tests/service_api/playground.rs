@@ -101,6 +101,9 @@ async fn the_page_is_served_with_its_scripts_and_calls_only_documented_endpoints
         "/v1/grid/paths",
         "/v1/grid/segment",
         "/v1/mesh/distance",
+        "/v1/mesh/remesh",
+        "/v1/mesh/embed",
+        "/v1/grid/tensor-metric",
         "/v1/jobs",
     ] {
         assert!(

@@ -124,16 +124,44 @@ window.GX = window.GX || {};
     }, 250);
   }
 
+  /** The image again in place of a metric picture. */
+  function showImage() {
+    $("base").classList.remove("glyphs");
+    S.metricPicture = null;
+    $("base").src = S.image.url;
+  }
+
   async function showMetric() {
     const kind = $("metric-kind").value;
-    if (kind === "constant" || kind === "structure_tensor") {
-      $("base").src = S.image.url;
-      GX.status(kind === "constant" ? "constant metric W = 1" : "a tensor field has no single picture: the image is shown; distances use the tensor metric");
+    const image = S.image;
+    if (kind === "constant") {
+      showImage();
+      GX.status("constant metric W = 1");
+      return;
+    }
+    if (kind === "structure_tensor") {
+      // A tensor field is drawn by the server as glyphs: the unit ball of the
+      // metric on a lattice of one glyph every g cells, coloured by the
+      // anisotropy. The picture has a caption above the field: the <img>
+      // (class glyphs) covers the stage with it cropped off, so that the
+      // glyphs sit over their cells.
+      const r = await GX.api("POST", "/v1/grid/tensor-metric", { json: metricSection() });
+      if (S.image !== image || $("metric-kind").value !== kind) return; // a newer image or metric won
+      $("base").classList.add("glyphs");
+      await setImg($("base"), r.tensor.data_url + "?format=png&colorbar=false");
+      const g = Math.max(1, Math.ceil(Math.max(...image.shape) / 32));
+      S.metricPicture = { kind, id: r.tensor.id, shape: r.tensor.shape, lattice: g };
+      if (!S.field) showColourbar(0, 1, `glyph colour: anisotropy 1 − λmin/λmax; unit balls of the metric every ${g} cells`, 0);
+      GX.status(`tensor metric (structure tensor): max anisotropy ${Number(r.stats.max_anisotropy).toPrecision(3)} over ${r.stats.cells} cells; ` +
+        "each glyph is the unit ball of the metric (long along the cheap direction)");
       return;
     }
     const m = metricSection().cost;
     const r = await GX.api("POST", "/v1/grid/metric", { json: { cost: m } });
+    if (S.image !== image || $("metric-kind").value !== kind) return;
+    $("base").classList.remove("glyphs");
     await setImg($("base"), r.metric.data_url + "?format=png&colorbar=false");
+    S.metricPicture = { kind, id: r.metric.id };
     GX.status(`metric ${kind}: ${r.stats ? JSON.stringify(r.stats) : ""}`);
   }
 
@@ -167,6 +195,8 @@ window.GX = window.GX || {};
     const { grey } = await greyOf(blob);
     if (S.image && S.image.url) URL.revokeObjectURL(S.image.url);
     S.image = { id: meta.id, shape: meta.shape, grey, url: URL.createObjectURL(blob), name };
+    $("base").classList.remove("glyphs");
+    S.metricPicture = null;
     const [h, w] = meta.shape;
     const svg = $("svg");
     svg.setAttribute("viewBox", `0 0 ${w} ${h}`);
@@ -277,7 +307,9 @@ window.GX = window.GX || {};
     showColourbar(lo, hi, label);
   }
 
-  function showColourbar(lo, hi, label) {
+  /** The colour bar, with `lines` iso-lines (the server's pictures: 10) marked. */
+  function showColourbar(lo, hi, label, lines) {
+    if (lines === undefined) lines = 10;
     const c = $("colourbar");
     const ctx = c.getContext("2d");
     const w = c.width, h = c.height;
@@ -288,10 +320,10 @@ window.GX = window.GX || {};
     }
     // The server draws 10 iso-lines, spaced (max − min) / 11.
     ctx.fillStyle = "rgba(255,255,255,0.85)";
-    for (let k = 1; k <= 10; k++) ctx.fillRect(Math.round(k / 11 * (w - 1)), 0, 1, h);
+    for (let k = 1; k <= lines; k++) ctx.fillRect(Math.round(k / (lines + 1) * (w - 1)), 0, 1, h);
     $("cb-lo").textContent = lo.toPrecision(4);
     $("cb-hi").textContent = hi.toPrecision(4);
-    $("cb-label").textContent = `${label}: iso-lines every ${((hi - lo) / 11).toPrecision(3)}`;
+    $("cb-label").textContent = lines ? `${label}: iso-lines every ${((hi - lo) / (lines + 1)).toPrecision(3)}` : label;
     $("colourbar-box").style.visibility = "visible";
   }
   function hideColourbar() { $("colourbar-box").style.visibility = "hidden"; }
@@ -506,7 +538,7 @@ window.GX = window.GX || {};
     $("metric-kind").addEventListener("change", () => { buildParams(); metricChanged(); });
     $("show-metric").addEventListener("change", () => {
       if (!S.image) return;
-      if ($("show-metric").checked) showMetric().catch(GX.fail); else $("base").src = S.image.url;
+      if ($("show-metric").checked) showMetric().catch(GX.fail); else { showImage(); if (!S.field) hideColourbar(); }
     });
     $("load-sample").addEventListener("click", () => loadSample().catch(GX.fail));
     $("image-file").addEventListener("change", (e) => {

@@ -1,6 +1,6 @@
 // Sample data made in code (nothing to license): grey images drawn from
 // closed-form shapes with a fixed-seed noise, and triangle meshes (a torus,
-// a bumpy sphere) written as OBJ text.
+// a bumpy sphere, a rolled sheet) written as OBJ text.
 "use strict";
 window.GX = window.GX || {};
 
@@ -149,6 +149,38 @@ window.GX = window.GX || {};
     return { v, f };
   }
 
+  /**
+   * A flat rectangular sheet rolled up along the Archimedean spiral
+   * r = a θ (θ from 1.5π to 4.5π: one and a half turns), `nu` vertices
+   * along the roll spaced evenly in arc length and `nv` across, so that the
+   * triangles are nearly right isosceles. Rolling bends without stretching:
+   * its geodesic distances are those of the flat rectangle, so its canonical
+   * form (mesh.embed) is the sheet unrolled.
+   */
+  function rolledSheet(nu, nv) {
+    const a = 0.08, t0 = 1.5 * Math.PI, t1 = 4.5 * Math.PI, K = 4000;
+    const th = [t0], s = [0];
+    for (let k = 1; k <= K; k++) {
+      const t = t0 + (t1 - t0) * k / K, tm = t - (t1 - t0) / (2 * K);
+      th.push(t);
+      s.push(s[k - 1] + a * Math.sqrt(1 + tm * tm) * (t1 - t0) / K);
+    }
+    const L = s[K], H = L * (nv - 1) / (nu - 1);
+    const v = [], f = [];
+    let j = 0;
+    for (let i = 0; i < nu; i++) {
+      const target = L * i / (nu - 1);
+      while (j < K - 1 && s[j + 1] < target) j++;
+      const t = th[j] + (target - s[j]) / (s[j + 1] - s[j]) * (th[j + 1] - th[j]);
+      for (let k = 0; k < nv; k++) v.push([a * t * Math.cos(t), H * k / (nv - 1), a * t * Math.sin(t)]);
+    }
+    for (let i = 0; i + 1 < nu; i++) for (let k = 0; k + 1 < nv; k++) {
+      const p = i * nv + k;
+      f.push([p, p + nv, p + nv + 1], [p, p + nv + 1, p + 1]);
+    }
+    return { v, f };
+  }
+
   function toObj(m) {
     const lines = m.v.map((p) => "v " + p.map((c) => c.toFixed(6)).join(" "));
     for (const t of m.f) lines.push("f " + (t[0] + 1) + " " + (t[1] + 1) + " " + (t[2] + 1));
@@ -158,6 +190,7 @@ window.GX = window.GX || {};
   const MESHES = {
     torus: () => toObj(torus(1, 0.4, 96, 40)),
     "bumpy sphere": () => toObj(sphere(4, 0.25)),
+    "rolled sheet": () => toObj(rolledSheet(72, 18)),
     "big sphere (jobs)": () => toObj(sphere(6, 0.25)),
   };
 

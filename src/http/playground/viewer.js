@@ -1,7 +1,8 @@
 // A minimal WebGL2 mesh viewer written for the playground (no library): a
 // lit triangle mesh coloured by a per-vertex scalar (viridis, with iso-lines
 // drawn in the fragment shader where fract(value / spacing) crosses 0),
-// polylines and points over it, orbit by dragging, zoom with the wheel, and
+// its edges optionally (to see a remeshing's triangles), polylines and
+// points over it, orbit by dragging, zoom with the wheel, and
 // picking by casting the pointer's ray against every triangle
 // (Möller–Trumbore), which answers a face and barycentric coordinates.
 "use strict";
@@ -119,6 +120,7 @@ window.GX = window.GX || {};
       this.yaw = 0.6; this.pitch = 0.5; this.dist = 3;
       this.vmax = 0; this.spacing = 0;
       this.lines = []; this.points = null;
+      this.showEdges = false; this.edges = null;
       this.onPick = null;
       this.bindInput();
     }
@@ -154,7 +156,7 @@ window.GX = window.GX || {};
         gl.vertexAttribPointer(loc, size, gl.FLOAT, false, 0, 0);
         return buf;
       };
-      attr(this.prog, "pos", pos, 3);
+      const posBuf = attr(this.prog, "pos", pos, 3);
       attr(this.prog, "nrm", nrm, 3);
       this.valBuf = attr(this.prog, "val", new Float32Array(n).fill(-1), 1);
       const ib = gl.createBuffer();
@@ -162,9 +164,30 @@ window.GX = window.GX || {};
       gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, idx, gl.STATIC_DRAW);
       this.count = idx.length;
       gl.bindVertexArray(null);
+      // The edges, each once, as line pairs over the same positions.
+      const seen = new Set(), edges = [];
+      for (const f of faces) for (let k = 0; k < 3; k++) {
+        const a = f[k], b = f[(k + 1) % 3];
+        const key = a < b ? a * n + b : b * n + a;
+        if (!seen.has(key)) { seen.add(key); edges.push(a, b); }
+      }
+      const evao = gl.createVertexArray();
+      gl.bindVertexArray(evao);
+      gl.bindBuffer(gl.ARRAY_BUFFER, posBuf);
+      const eloc = gl.getAttribLocation(this.lprog, "pos");
+      gl.enableVertexAttribArray(eloc);
+      gl.vertexAttribPointer(eloc, 3, gl.FLOAT, false, 0, 0);
+      const eb = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, eb);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, new Uint32Array(edges), gl.STATIC_DRAW);
+      gl.bindVertexArray(null);
+      this.edges = { vao: evao, count: edges.length };
       this.values = null; this.vmax = 0; this.lines = []; this.points = null;
       this.draw();
     }
+
+    /** Draws the mesh's edges (dark lines) or not. */
+    setEdges(on) { this.showEdges = !!on; this.draw(); }
 
     /** Per-vertex values (null: unreached), coloured up to their maximum with `lines` iso-lines. */
     setValues(values, lines) {
@@ -231,6 +254,12 @@ window.GX = window.GX || {};
       gl.drawElements(gl.TRIANGLES, this.count, gl.UNSIGNED_INT, 0);
       gl.useProgram(this.lprog);
       gl.uniformMatrix4fv(gl.getUniformLocation(this.lprog, "mvp"), false, mvp);
+      if (this.showEdges && this.edges) {
+        gl.uniform3fv(gl.getUniformLocation(this.lprog, "tint"), [0.13, 0.14, 0.17]);
+        gl.uniform1f(gl.getUniformLocation(this.lprog, "size"), 1);
+        gl.bindVertexArray(this.edges.vao);
+        gl.drawElements(gl.LINES, this.edges.count, gl.UNSIGNED_INT, 0);
+      }
       for (const l of this.lines) {
         // WebGL draws lines one pixel wide: dots of 4 pixels at the vertices make a path visible.
         gl.uniform3fv(gl.getUniformLocation(this.lprog, "tint"), l.tint);
