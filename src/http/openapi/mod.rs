@@ -40,7 +40,10 @@ length in the metric (`∫W`, `∫sqrt(γ'ᵀMγ')`, on a mesh the distance `U` 
 - **Metrics**: an isotropic metric is always the `cost` section (`dataset`, `constant` + `shape`, \
 `interpretation`, `design`), a Riemannian one the `metric` section (a tensor field).\n\
 - Renamed fields and values (listed in CHANGELOG.md) answer 422 naming the new spelling.\n\n\
-Every error is an RFC 9457 `application/problem+json` document naming the offending field.",
+Every error is an RFC 9457 `application/problem+json` document naming the offending field.\n\n\
+**Try it**: the playground at `/playground` (the service's own page) clicks sources, paths, seeds and \
+meshes through these endpoints alone and shows each request as curl; every operation below carries a \
+request and an answer example recorded from a real call.",
         license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0"),
     ),
     tags(
