@@ -33,7 +33,7 @@ use std::sync::Arc;
 use clap::{ArgGroup, Args, ValueEnum};
 
 use super::design::DesignFlag;
-use super::output::{self, OutputError};
+use super::output;
 use super::SpacingFlag;
 
 use super::run::{run_operation, CliError, CliInputs, FlagMap};
@@ -221,40 +221,12 @@ pub enum ConnectivityArg {
     Extended,
 }
 
-/// Why `geodex distance` failed: always names the flag at fault.
-#[derive(Debug, thiserror::Error)]
-pub enum DistanceError {
-    /// A flag's value is refused.
-    #[error("{flag}: {reason}")]
-    Flag {
-        /// The flag, with its occurrence for repeatable ones (`--source 2`).
-        flag: String,
-        /// Why.
-        reason: String,
-    },
-    /// The user cancelled.
-    #[error("cancelled")]
-    Cancelled,
-}
-
-impl From<CliError> for DistanceError {
-    fn from(e: CliError) -> Self {
-        match e {
-            CliError::Flag { flag, reason } => DistanceError::Flag { flag, reason },
-            CliError::Cancelled => DistanceError::Cancelled,
-            CliError::Other(reason) => flag("geodex", reason),
-        }
-    }
-}
-
-impl From<OutputError> for DistanceError {
-    fn from(e: OutputError) -> Self {
-        flag(e.flag(), e.reason())
-    }
-}
+/// Why `geodex distance` (and `geodex path`) failed: always names the flag
+/// at fault.
+pub type DistanceError = CliError;
 
 pub(crate) fn flag(flag: impl Into<String>, reason: impl Into<String>) -> DistanceError {
-    DistanceError::Flag {
+    CliError::Flag {
         flag: flag.into(),
         reason: reason.into(),
     }

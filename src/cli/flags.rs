@@ -45,9 +45,10 @@ pub(crate) struct FlagMap {
     rules: Vec<Rule>,
 }
 
-/// A command-line error, naming the flag at fault.
+/// A command-line error, naming the flag at fault: the one error of every
+/// grid command (`DistanceError` and `SegmentCliError` are its older names).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub(crate) enum CliError {
+pub enum CliError {
     /// A flag's value, or what it gave, is refused.
     #[error("{flag}: {reason}")]
     Flag {
@@ -62,6 +63,15 @@ pub(crate) enum CliError {
     /// Anything else (the pool could not start, the solve panicked).
     #[error("{0}")]
     Other(String),
+}
+
+impl From<super::output::OutputError> for CliError {
+    fn from(e: super::output::OutputError) -> Self {
+        CliError::Flag {
+            flag: e.flag().to_string(),
+            reason: e.reason(),
+        }
+    }
 }
 
 impl CliError {

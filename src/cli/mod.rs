@@ -18,6 +18,7 @@ mod bench_tensor;
 pub mod design;
 pub mod distance;
 mod flags;
+pub use flags::CliError;
 pub mod gradient;
 pub mod inverse;
 pub mod metric;

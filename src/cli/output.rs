@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use crate::io::{self, ArrayData, IoError, IsoLines, RenderOptions};
+use crate::io::{self, ArrayData, IoError, RenderOptions};
 
 /// The extensions an array output accepts, for messages.
 const KNOWN: &str = ".npy, .tiff, .png or .png16";
@@ -155,8 +155,7 @@ impl ArrayFormat {
 pub(crate) fn picture_options(array: &ArrayData) -> RenderOptions {
     RenderOptions {
         colorbar: true,
-        iso_lines: matches!(array, ArrayData::F64(_) | ArrayData::F32(_))
-            .then_some(IsoLines::Count(10)),
+        iso_lines: io::default_iso_lines(array),
         ..RenderOptions::default()
     }
 }

@@ -10,7 +10,8 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
-pub(crate) use super::flags::{CliError, FlagMap};
+pub use super::flags::CliError;
+pub(crate) use super::flags::FlagMap;
 use super::progress::Progress;
 use crate::numerics::grid::MAX_CELLS;
 use crate::ops::{DynOperation, InputArray, OpLimits, OpOutput};

@@ -28,7 +28,7 @@ use std::sync::Arc;
 use clap::Args;
 
 use super::design::DesignFlag;
-use super::output::{self, OutputError};
+use super::output;
 use super::SpacingFlag;
 
 use super::run::{run_on, CliError, FlagMap};
@@ -50,33 +50,7 @@ use crate::ops::spec::tensor::{ComponentsTensor, TensorSpec};
 use crate::ops::{InputArray, OpOutput, Operation};
 
 /// A command-line mistake or a refused request, naming the flag.
-#[derive(Debug, thiserror::Error)]
-pub enum SegmentCliError {
-    /// A flag's value is wrong.
-    #[error("{flag}: {reason}")]
-    Flag {
-        /// The flag.
-        flag: String,
-        /// Why.
-        reason: String,
-    },
-}
-
-impl From<CliError> for SegmentCliError {
-    fn from(e: CliError) -> Self {
-        match e {
-            CliError::Flag { flag: name, reason } => flag(name, reason),
-            CliError::Cancelled => flag("geodex", "cancelled"),
-            CliError::Other(reason) => flag("geodex", reason),
-        }
-    }
-}
-
-impl From<OutputError> for SegmentCliError {
-    fn from(e: OutputError) -> Self {
-        flag(e.flag(), e.reason())
-    }
-}
+pub type SegmentCliError = CliError;
 
 /// The table of the commands whose fields are their flags' names (and
 /// `spacing[k]` the k-th value of `--spacing`).
@@ -94,7 +68,7 @@ fn cost_flag(cost: &Option<PathBuf>) -> &'static str {
 }
 
 pub(super) fn flag(name: impl Into<String>, reason: impl Into<String>) -> SegmentCliError {
-    SegmentCliError::Flag {
+    CliError::Flag {
         flag: name.into(),
         reason: reason.into(),
     }

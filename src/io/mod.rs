@@ -49,7 +49,8 @@ pub use nifti::encode_nifti;
 pub use npy::encode_npy;
 pub use raster::encode_png16;
 pub use render::{
-    render_png, render_png_over, Colormap, IsoLines, Overlay, RenderOptions, RenderStyle, View,
+    default_iso_lines, render_png, render_png_over, Colormap, IsoLines, Overlay, RenderOptions,
+    RenderStyle, View,
 };
 pub use tiff::encode_tiff_f32;
 

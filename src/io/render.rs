@@ -325,6 +325,13 @@ pub struct RenderOptions {
     pub view: View,
 }
 
+/// The iso-value lines a map's picture gets unless others are asked for: 10
+/// on a float field (a distance map), none on labels or images. The service
+/// (`?format=png`) and the command line (`--out U.png`) draw the same picture.
+pub fn default_iso_lines(array: &ArrayData) -> Option<IsoLines> {
+    matches!(array, ArrayData::F64(_) | ArrayData::F32(_)).then_some(IsoLines::Count(10))
+}
+
 /// What is drawn over a map besides its values.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Overlay<'a> {

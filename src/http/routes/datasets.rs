@@ -339,8 +339,10 @@ pub fn render_picture(
 ) -> Result<Vec<u8>, ApiError> {
     let mut options = picture.options;
     // Float fields (distance maps) get iso-value lines by default.
-    if !picture.levels_given && matches!(array, ArrayData::F64(_) | ArrayData::F32(_)) {
-        options.iso_lines = Some(io::IsoLines::Count(10));
+    if !picture.levels_given {
+        if let Some(lines) = io::default_iso_lines(array) {
+            options.iso_lines = Some(lines);
+        }
     }
     if picture.vmin.is_some() || picture.vmax.is_some() {
         let (lo, hi) = finite_min_max(array);
