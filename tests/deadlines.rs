@@ -150,6 +150,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
         ),
         ("grid.skeleton", "/v1/grid/skeleton", json!({"mask": image})),
         (
+            "grid.shape_embed",
+            "/v1/grid/shape-embed",
+            json!({"mask": small_image, "landmarks": 100}),
+        ),
+        (
             "grid.offset",
             "/v1/grid/offset",
             json!({"mask": image, "radius": 400.0, "metric": "geodesic", "cost": big}),

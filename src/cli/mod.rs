@@ -17,6 +17,7 @@ pub mod bench;
 mod bench_tensor;
 pub mod design;
 pub mod distance;
+pub mod embedding;
 mod flags;
 pub use flags::CliError;
 pub mod gradient;
@@ -112,6 +113,10 @@ pub enum Command {
     DistanceMatrix(shape::DistanceMatrixArgs),
     /// Bending-invariant canonical form of a mesh file (MDS of its geodesic distances), written as PLY.
     Embed(shape::EmbedArgs),
+    /// Canonical form of a shape given as a mask file (MDS of its inner geodesic distances).
+    ShapeEmbed(embedding::ShapeEmbedArgs),
+    /// Isomap embedding of a point-cloud file (an N × D array).
+    Isomap(embedding::IsomapArgs),
 }
 
 /// Entry point of the binary.
@@ -145,6 +150,8 @@ pub fn main() -> ExitCode {
             shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)
         }
         Some(Command::Embed(args)) => shape::run_embed(&args).map_err(anyhow::Error::msg),
+        Some(Command::ShapeEmbed(args)) => embedding::run_shape_embed(&args).map_err(Into::into),
+        Some(Command::Isomap(args)) => embedding::run_isomap(&args).map_err(Into::into),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -54,7 +54,7 @@ pub type SegmentCliError = CliError;
 
 /// The table of the commands whose fields are their flags' names (and
 /// `spacing[k]` the k-th value of `--spacing`).
-fn grid_flags() -> FlagMap {
+pub(super) fn grid_flags() -> FlagMap {
     FlagMap::new().values("spacing", "--spacing")
 }
 
@@ -645,7 +645,7 @@ pub(super) fn array<'a>(out: &'a OpOutput, name: &str) -> Option<&'a ArrayData> 
     out.arrays.iter().find(|a| a.name == name).map(|a| &a.array)
 }
 
-fn save(
+pub(super) fn save(
     out: &OpOutput,
     name: &str,
     flag_name: &str,

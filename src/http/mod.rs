@@ -87,6 +87,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::segment::mesh))
         .routes(routes!(routes::segment::domain_mesh))
         .routes(routes!(routes::shading::shape_from_shading))
+        .routes(routes!(routes::shape::shape_embed))
         .routes(routes!(routes::gradient::cost_gradient))
         .routes(routes!(routes::inverse::tomography))
         .routes(routes!(routes::inverse::fit_metric))

@@ -39,6 +39,7 @@ pub mod grid_plan;
 pub mod grid_sample;
 pub mod grid_segment;
 pub mod grid_shading;
+pub mod grid_shape_embed;
 pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;

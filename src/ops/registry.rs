@@ -63,6 +63,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::grid_mesh::GridMeshRequest>(),
     entry::<super::domain_mesh::DomainMeshRequest>(),
     entry::<super::grid_shading::GridShadingRequest>(),
+    entry::<super::grid_shape_embed::GridShapeEmbedRequest>(),
     entry::<super::grid_cost_gradient::GridCostGradientRequest>(),
     entry::<super::grid_tomography::GridTomographyRequest>(),
     entry::<super::grid_fit_metric::GridFitMetricRequest>(),

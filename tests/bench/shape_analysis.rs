@@ -5,6 +5,7 @@
 //! cargo bench --bench shape_analysis -- roll 10000 7 /tmp/roll.npy /tmp/roll_flat.npy  # the cloud, and its unrolled truth
 //! cargo bench --bench shape_analysis -- isomap /tmp/roll.npy 10 500     # k = 10, 500 landmarks (0: all pairs)
 //! cargo bench --bench shape_analysis -- matrix 7 500 heat               # 500 landmark rows, icosphere level 7
+//! cargo bench --bench shape_analysis -- matrix 7 500 heat /tmp/ico7      # also writes /tmp/ico7.obj and its landmarks
 //! cargo bench --bench shape_analysis -- embed 7 500 heat                # landmark-MDS canonical form, end to end
 //! ```
 //!
@@ -30,6 +31,40 @@ fn method(name: &str) -> MeshMethod {
         "dijkstra" => MeshMethod::Dijkstra,
         _ => MeshMethod::FastMarching,
     }
+}
+
+/// Mean relative error of distance rows on the unit icosphere against the
+/// great-circle distance, over the vertices farther than 0.1 from each source
+/// (the measure of `compare_potpourri3d.py`).
+fn sphere_error(
+    mesh: &geodex::numerics::mesh::TriMesh,
+    sources: &[u32],
+    rows: ndarray::ArrayView2<'_, f64>,
+) -> f64 {
+    let p = mesh.positions();
+    let unit = |v: [f64; 3]| {
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        [v[0] / n, v[1] / n, v[2] / n]
+    };
+    let (mut sum, mut count) = (0.0, 0usize);
+    for (i, &s) in sources.iter().enumerate() {
+        let a = unit(p[s as usize]);
+        for (v, &d) in rows.row(i).iter().enumerate() {
+            let b = unit(p[v]);
+            let cross = [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ];
+            let sin = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+            let exact = sin.atan2(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+            if exact > 0.1 {
+                sum += (d - exact).abs() / exact;
+                count += 1;
+            }
+        }
+    }
+    sum / count.max(1) as f64
 }
 
 fn arg<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> T {
@@ -114,14 +149,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     &control,
                 )?;
                 let rows = t.elapsed().as_secs_f64();
+                let total = started.elapsed().as_secs_f64();
+                let error = sphere_error(&mesh, &r.sources, r.rows.view());
                 println!(
                     "{{\"tool\": \"geodex\", \"case\": \"matrix\", \"vertices\": {}, \"landmarks\": {count}, \
                      \"method\": \"{m:?}\", \"setup_s\": {setup:.3}, \"landmarks_s\": {pick:.3}, \"rows_s\": {rows:.3}, \
-                     \"total_s\": {:.3}, \"asymmetry\": {:.5}, \"threads\": {threads}}}",
+                     \"total_s\": {total:.3}, \"asymmetry\": {:.5}, \"mean_relative_error\": {error:.6}, \"threads\": {threads}}}",
                     mesh.num_vertices(),
-                    started.elapsed().as_secs_f64(),
                     r.asymmetry
                 );
+                if let Some(prefix) = args.get(4) {
+                    // The same mesh and landmarks for a peer (compare_distance_matrix.py).
+                    let obj = std::path::PathBuf::from(format!("{prefix}.obj"));
+                    std::fs::write(
+                        &obj,
+                        geodex::io::mesh::write::encode_by_extension(&mesh, &[], &obj)?,
+                    )?;
+                    let l: Vec<i64> = r.sources.iter().map(|&v| i64::from(v)).collect();
+                    let l = ndarray::Array1::from(l).into_dyn();
+                    std::fs::write(
+                        format!("{prefix}_landmarks.npy"),
+                        io::encode_npy(&ArrayData::I64(l))?,
+                    )?;
+                }
             } else {
                 let f = canonical_form(
                     &mesh,

@@ -208,6 +208,7 @@ def every_operation(run: Run) -> None:
     run.post("grid", "segment", "GridSegmentRequest",
              {"cost": {"dataset": img}, "seeds": [{"label": 1, "point": [5, 5]}, {"label": 2, "point": [58, 58]}]})
     run.post("grid", "skeleton", "GridSkeletonRequest", {"mask": msk})
+    run.post("grid", "shape_embed", "GridShapeEmbedRequest", {"mask": msk, "landmarks": 12})
     run.post("grid", "offset", "GridOffsetRequest", {"mask": msk, "operation": "dilate", "radius": 3.0})
     run.post("grid", "plan", "GridPlanRequest",
              {"obstacles": msk, "start": [2, 2], "goal": [61, 61], "radius": 1.5})

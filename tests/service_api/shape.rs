@@ -1,5 +1,5 @@
 //! Shape analysis over HTTP: `/v1/mesh/distance-matrix`, `/v1/mesh/embed`,
-//! `/v1/points/isomap`.
+//! `/v1/points/isomap`, `/v1/grid/shape-embed`.
 
 use geodex::io::mesh::write::write_obj;
 use geodex::io::{self, ArrayData};
@@ -177,4 +177,100 @@ async fn isomap_of_an_uploaded_swiss_roll() {
     )
     .await;
     assert_eq!(p["field"], "k", "{p}");
+}
+
+/// A `rows × cols` u8 mask with the cells where `inside(i, j)` set.
+fn mask(rows: usize, cols: usize, inside: impl Fn(usize, usize) -> bool) -> ArrayData {
+    ArrayData::U8(
+        ndarray::Array2::from_shape_fn((rows, cols), |(i, j)| u8::from(inside(i, j))).into_dyn(),
+    )
+}
+
+#[tokio::test]
+async fn shape_embed_of_a_mask_and_its_refusals() {
+    let app = spawn(|_| {}).await;
+    // An L: two 8-cell-wide arms of a 30 × 30 grid.
+    let l_shape = mask(30, 30, |i, j| {
+        (2..28).contains(&i) && (2..10).contains(&j)
+            || (20..28).contains(&i) && (2..28).contains(&j)
+    });
+    let cells = match &l_shape {
+        ArrayData::U8(a) => a.iter().filter(|&&v| v > 0).count(),
+        _ => unreachable!(),
+    };
+    let id = app.upload(&l_shape).await;
+    let res = post(
+        &app,
+        "/v1/grid/shape-embed",
+        json!({"mask": id, "landmarks": 20, "matrix": true}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    assert_eq!(body["coordinates"]["shape"], json!([cells, 2]));
+    assert_eq!(body["cells"]["shape"], json!([cells, 2]));
+    assert_eq!(body["matrix"]["shape"], json!([20, cells]));
+    assert_eq!(body["landmarks"].as_array().map(Vec::len), Some(20));
+    // The L (26 × 26 cells) unfolds: its canonical form is longer than the
+    // L and twice as long as wide (38.5 × 18.9 measured; the elbow keeps a
+    // bend, since the inner corner shortens the paths of one side only).
+    let ArrayData::F64(x) = npy(&app, &body["coordinates"]["data_url"]).await else {
+        panic!("f64 coordinates");
+    };
+    let extent = |a: usize| {
+        let col = x.index_axis(ndarray::Axis(1), a);
+        col.fold(f64::NEG_INFINITY, |m, &v| m.max(v)) - col.fold(f64::INFINITY, |m, &v| m.min(v))
+    };
+    assert!(
+        extent(0) > 35.0 && extent(0) > 1.8 * extent(1),
+        "{} × {}",
+        extent(0),
+        extent(1)
+    );
+    assert!(
+        body["residual_variance"].as_f64().expect("rv") < 0.2,
+        "{body}"
+    );
+    // The pixel mesh at the embedded positions.
+    let meta = app.get(body["result"]["url"].as_str().expect("url")).await;
+    let meta: serde_json::Value = meta.json().await.expect("json");
+    assert_eq!(meta["mesh"]["vertices"], cells);
+    // Two pieces: a 422 naming the mask and the way out.
+    let two = app
+        .upload(&mask(20, 20, |i, j| {
+            (2..6).contains(&i) && (2..18).contains(&j)
+                || (10..14).contains(&i) && (2..18).contains(&j)
+        }))
+        .await;
+    let p = problem(
+        post(
+            &app,
+            "/v1/grid/shape-embed",
+            json!({"mask": two, "landmarks": 8}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(p["field"], "mask", "{p}");
+    assert!(p["detail"].as_str().unwrap_or("").contains("piece"), "{p}");
+    // All pairs of 6400 cells: a 413 naming the landmark option.
+    let big = app.upload(&mask(80, 80, |_, _| true)).await;
+    let p = problem(
+        post(&app, "/v1/grid/shape-embed", json!({"mask": big})).await,
+        413,
+    )
+    .await;
+    assert_eq!(p["field"], "landmarks", "{p}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/grid/shape-embed",
+            json!({"mask": id, "order": 3}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(p["field"], "order", "{p}");
 }

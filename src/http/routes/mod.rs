@@ -7,6 +7,7 @@
 //! * [`metric`]: `POST /v1/grid/metric`.
 //! * [`group`]: `POST /v1/grid/group`.
 //! * [`shading`]: `POST /v1/grid/shape-from-shading`.
+//! * [`shape`]: `POST /v1/grid/shape-embed`.
 //! * [`gradient`]: `POST /v1/grid/cost-gradient`.
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`inverse`]: `POST /v1/grid/tomography`, `POST /v1/grid/fit-metric`.
@@ -32,4 +33,5 @@ pub mod playground;
 pub mod points;
 pub mod segment;
 pub mod shading;
+pub mod shape;
 pub mod tensor;

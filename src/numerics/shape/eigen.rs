@@ -97,18 +97,26 @@ fn product(a: ArrayView2<'_, f64>, q: &Array2<f64>) -> Array2<f64> {
 
 /// Orthonormalises the columns in place (modified Gram–Schmidt, twice);
 /// a column that vanishes is replaced by a fresh pseudo-random one.
+///
+/// "Vanishes" is relative: a column that loses all but `1e-8` of its norm to
+/// the projections lay (to rounding) in the span of the columns before it,
+/// and what is left is rounding noise, which normalising would turn into a
+/// direction far from orthogonal to them. This is the common case of MDS,
+/// whose matrices have a rank near the embedding dimension: the block's
+/// extra columns all fall into the range after one product.
 fn orthonormalize(q: &mut Array2<f64>, seed: &mut u64) {
     let (n, p) = q.dim();
     for _pass in 0..2 {
         for j in 0..p {
             for _retry in 0..3 {
+                let before = q.column(j).dot(&q.column(j)).sqrt();
                 for i in 0..j {
                     let dot = q.column(i).dot(&q.column(j));
                     let ci = q.column(i).to_owned();
                     q.column_mut(j).scaled_add(-dot, &ci);
                 }
                 let nrm = q.column(j).dot(&q.column(j)).sqrt();
-                if nrm > 1e-300 && nrm.is_finite() {
+                if nrm > 1e-8 * before && nrm > 0.0 && nrm.is_finite() {
                     q.column_mut(j).mapv_inplace(|x| x / nrm);
                     break;
                 }
@@ -201,8 +209,10 @@ mod tests {
         a
     }
 
+    /// Indefinite and of rank 6, below the block size (13): the extra
+    /// columns vanish after one product, which an absolute test of a
+    /// vanished column missed (the Ritz values then exceeded the spectrum).
     #[test]
-    #[ignore = "open defect: subspace iteration does not converge on this indefinite rank-6 matrix (residual 0.7); the PSD path is covered by mds::tests::classical_mds_recovers_points_up_to_a_rigid_motion"]
     fn dense_and_subspace_agree_with_a_known_spectrum() {
         let n = 300;
         let vals = [50.0, 20.0, 7.0, -3.0, 1.0, 0.5];

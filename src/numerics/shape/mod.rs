@@ -15,12 +15,15 @@
 //! * [`procrustes`]: rigid (orthogonal) alignment of two point sets.
 //! * [`isomap`]: Isomap of a point cloud.
 //! * [`canonical`]: the canonical form of a mesh (Elad and Kimmel).
+//! * [`mask`]: inner distances of a 2D or 3D shape given as a mask, and its
+//!   canonical form.
 
 pub mod canonical;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
 pub mod knn;
+pub mod mask;
 pub mod matrix;
 pub mod mds;
 pub mod procrustes;

@@ -72,7 +72,13 @@ pub(crate) fn shape_error(e: ShapeError, input: &str) -> OpError {
         ShapeError::Cancelled => OpError::Cancelled,
         ShapeError::InvalidOption { option, reason } => OpError::invalid(option, reason),
         ShapeError::Disconnected { what, .. } => {
-            let field = if what == "mesh" { input } else { "k" };
+            // The neighbour graph of a point cloud is connected by raising `k`;
+            // a mesh or a mask is the input itself.
+            let field = if what == "neighbour graph" {
+                "k"
+            } else {
+                input
+            };
             OpError::invalid(field, e.to_string())
         }
         ShapeError::Solve(s) => mesh_solve_error(s),
