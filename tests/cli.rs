@@ -1310,3 +1310,87 @@ fn no_progress_is_drawn_when_stderr_is_not_a_terminal() {
         "{stdout:?}"
     );
 }
+
+/// `geodex shape-embed` on a rectangle mask (convex: the inner distance is
+/// Euclidean) gives the cells back up to a rigid motion, and its mesh; a
+/// mask in two pieces is one stderr line naming `--mask`. `geodex isomap`
+/// unrolls a swiss roll.
+#[test]
+fn shape_embed_and_isomap_write_their_outputs() {
+    let dir = TempDir::new().unwrap();
+    let mask = ArrayD::from_shape_fn(IxDyn(&[14, 30]), |ix| {
+        u8::from((2..12).contains(&ix[0]) && (3..27).contains(&ix[1]))
+    });
+    let m = path(&dir, "m.npy");
+    write_npy(&m, &mask).unwrap();
+    let (x, c, mesh) = (
+        path(&dir, "x.npy"),
+        path(&dir, "c.npy"),
+        path(&dir, "f.ply"),
+    );
+    let o = geodex(&[
+        "shape-embed",
+        "--mask",
+        s(&m),
+        "--landmarks",
+        "12",
+        "--out",
+        s(&x),
+        "--cells",
+        s(&c),
+        "--mesh",
+        s(&mesh),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let xs: ndarray::Array2<f64> = read_npy(&x).unwrap();
+    let c: ndarray::Array2<i64> = read_npy(&c).unwrap();
+    assert_eq!(xs.dim(), (240, 2));
+    assert_eq!(c.dim(), (240, 2));
+    // Pairwise distances of the embedding are those of the cells.
+    let mut worst = 0.0f64;
+    for p in (0..240).step_by(7) {
+        for q in (0..240).step_by(11) {
+            let e = (xs[[p, 0]] - xs[[q, 0]]).hypot(xs[[p, 1]] - xs[[q, 1]]);
+            let g = ((c[[p, 0]] - c[[q, 0]]) as f64).hypot((c[[p, 1]] - c[[q, 1]]) as f64);
+            worst = worst.max((e - g).abs());
+        }
+    }
+    assert!(worst < 0.6, "{worst}");
+    assert!(std::fs::metadata(&mesh).unwrap().len() > 0);
+    // Two pieces.
+    let two = ArrayD::from_shape_fn(IxDyn(&[10, 10]), |ix| u8::from(ix[0] < 3 || ix[0] > 6));
+    write_npy(&m, &two).unwrap();
+    let o = geodex(&[
+        "shape-embed",
+        "--mask",
+        s(&m),
+        "--landmarks",
+        "5",
+        "--out",
+        s(&x),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--mask") && err.contains("piece"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    // Isomap of a swiss roll.
+    let (roll, _) = geodex::numerics::shape::isomap::swiss_roll(500, 3);
+    let p = path(&dir, "roll.npy");
+    write_npy(&p, &roll).unwrap();
+    let y = path(&dir, "y.npy");
+    let o = geodex(&["isomap", "--points", s(&p), "--k", "10", "--out", s(&y)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let y: ndarray::Array2<f64> = read_npy(&y).unwrap();
+    assert_eq!(y.dim(), (500, 2));
+    let o = geodex(&[
+        "isomap",
+        "--points",
+        s(&p),
+        "--k",
+        "1",
+        "--out",
+        s(&path(&dir, "z.npy")),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--k"), "{err}");
+}
