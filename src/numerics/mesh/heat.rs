@@ -405,49 +405,8 @@ impl HeatSolver {
             return Err(MeshSolveError::Cancelled);
         }
         control.report(0.4);
-        // Normalised gradient and its integrated divergence.
-        let mut div = vec![0.0; n];
-        for face in &self.faces {
-            let f = face.vertices;
-            let p = [0, 1, 2].map(|k| face.corner(k));
-            let u = f.map(|v| rhs[(v as usize, 0)]);
-            // ∇u = (1 / 2A) Σ_k u_k R(e_k), e_k the edge opposite corner k
-            // and R the rotation by +90° (the corners are counter-clockwise).
-            let mut g = [0.0; 2];
-            for k in 0..3 {
-                let (a, b) = (p[(k + 1) % 3], p[(k + 2) % 3]);
-                let e = [b[0] - a[0], b[1] - a[1]];
-                g[0] -= u[k] * e[1];
-                g[1] += u[k] * e[0];
-            }
-            let gn = g[0].hypot(g[1]);
-            if !gn.is_finite() || gn <= 0.0 {
-                continue;
-            }
-            let x = [-g[0] / gn, -g[1] / gn];
-            let c = face.cot;
-            for k in 0..3 {
-                let (i1, i2) = ((k + 1) % 3, (k + 2) % 3);
-                let e1 = [p[i1][0] - p[k][0], p[i1][1] - p[k][1]];
-                let e2 = [p[i2][0] - p[k][0], p[i2][1] - p[k][1]];
-                let (d1, d2) = (e1[0] * x[0] + e1[1] * x[1], e2[0] * x[0] + e2[1] * x[1]);
-                // cot of the angle opposite e1 is at corner i2, opposite e2 at i1.
-                div[f[k] as usize] += 0.5 * self.scale * (c[i2] * d1 + c[i1] * d2);
-            }
-        }
-        // Zero mean per component (a closed surface has none; boundaries leak).
-        let mut sum = vec![0.0; self.components];
-        let mut area = vec![0.0; self.components];
-        for (v, &dv) in div.iter().enumerate() {
-            let c = self.component[v] as usize;
-            sum[c] += dv;
-            area[c] += self.mass[v];
-        }
         let mut phi = Mat::<f64>::zeros(n, 1);
-        for v in 0..n {
-            let c = self.component[v] as usize;
-            phi[(v, 0)] = -(div[v] - self.mass[v] * sum[c] / area[c]);
-        }
+        self.poisson_rhs(rhs.col_as_slice(0), phi.col_as_slice_mut(0));
         // L φ = −∇·X with L positive semi-definite; the sign convention
         // makes φ increase away from the sources.
         self.poisson.solve_in_place(phi.as_mut());
@@ -499,6 +458,114 @@ impl HeatSolver {
         }
         control.report(1.0);
         Ok(out)
+    }
+
+    /// The right side of the Poisson step from the heat solution `u`: minus
+    /// the integrated divergence of `X = −∇u / |∇u|` per vertex,
+    /// `(∇·X)_i = ½ Σ_f cot θ₁ (e₁ · X) + cot θ₂ (e₂ · X)` over the faces
+    /// around `i` (Crane, Weischedel and Wardetzky, eq. 4), made zero-mean
+    /// per component (a closed surface's is; a boundary leaks).
+    fn poisson_rhs(&self, u: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        let mut div = vec![0.0; n];
+        for face in &self.faces {
+            let f = face.vertices;
+            let p = [0, 1, 2].map(|k| face.corner(k));
+            let u = f.map(|v| u[v as usize]);
+            // ∇u = (1 / 2A) Σ_k u_k R(e_k), e_k the edge opposite corner k
+            // and R the rotation by +90° (the corners are counter-clockwise).
+            let mut g = [0.0; 2];
+            for k in 0..3 {
+                let (a, b) = (p[(k + 1) % 3], p[(k + 2) % 3]);
+                let e = [b[0] - a[0], b[1] - a[1]];
+                g[0] -= u[k] * e[1];
+                g[1] += u[k] * e[0];
+            }
+            let gn = g[0].hypot(g[1]);
+            if !gn.is_finite() || gn <= 0.0 {
+                continue;
+            }
+            let x = [-g[0] / gn, -g[1] / gn];
+            let c = face.cot;
+            for k in 0..3 {
+                let (i1, i2) = ((k + 1) % 3, (k + 2) % 3);
+                let e1 = [p[i1][0] - p[k][0], p[i1][1] - p[k][1]];
+                let e2 = [p[i2][0] - p[k][0], p[i2][1] - p[k][1]];
+                let (d1, d2) = (e1[0] * x[0] + e1[1] * x[1], e2[0] * x[0] + e2[1] * x[1]);
+                // cot of the angle opposite e1 is at corner i2, opposite e2 at i1.
+                div[f[k] as usize] += 0.5 * self.scale * (c[i2] * d1 + c[i1] * d2);
+            }
+        }
+        let mut sum = vec![0.0; self.components];
+        let mut area = vec![0.0; self.components];
+        for (v, &dv) in div.iter().enumerate() {
+            let c = self.component[v] as usize;
+            sum[c] += dv;
+            area[c] += self.mass[v];
+        }
+        for (v, o) in out.iter_mut().enumerate() {
+            let c = self.component[v] as usize;
+            *o = -(div[v] - self.mass[v] * sum[c] / area[c]);
+        }
+    }
+
+    /// Distance rows from single vertices, solved `vertices.len()` at a
+    /// time: the two sparse solves take the whole block of right-hand sides
+    /// at once (each factor is read once per block instead of once per
+    /// row), the rest is [`HeatSolver::distance`] per column. `rows` holds
+    /// one row of `n` values per vertex, written in place; a vertex in
+    /// another component than the source is `+inf`. The same numbers as
+    /// `distance` from that vertex up to the rounding of the block solve.
+    pub fn vertex_rows(
+        &self,
+        vertices: &[u32],
+        rows: &mut [f64],
+        control: &Control<'_>,
+    ) -> Result<(), MeshSolveError> {
+        let n = self.n;
+        let b = vertices.len();
+        if rows.len() != n * b {
+            return Err(MeshSolveError::InvalidOption {
+                option: "rows",
+                reason: format!("{} values for {b} rows of {n}", rows.len()),
+            });
+        }
+        if let Some(index) = vertices.iter().position(|&v| v as usize >= n) {
+            return Err(MeshSolveError::InvalidSource {
+                index,
+                reason: format!("vertex {} does not exist", vertices[index]),
+            });
+        }
+        let mut rhs = Mat::<f64>::zeros(n, b);
+        for (k, &v) in vertices.iter().enumerate() {
+            rhs[(v as usize, k)] = 1.0;
+        }
+        self.heat.solve_in_place(rhs.as_mut());
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        let mut phi = Mat::<f64>::zeros(n, b);
+        for k in 0..b {
+            self.poisson_rhs(rhs.col_as_slice(k), phi.col_as_slice_mut(k));
+        }
+        drop(rhs);
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        self.poisson.solve_in_place(phi.as_mut());
+        for (k, (&v, row)) in vertices.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
+            let col = phi.col_as_slice(k);
+            let c = self.component[v as usize];
+            let shift = col[v as usize];
+            for (w, (r, &p)) in row.iter_mut().zip(col).enumerate() {
+                *r = if self.component[w] == c && p.is_finite() {
+                    (p - shift).max(0.0)
+                } else {
+                    f64::INFINITY
+                };
+            }
+        }
+        Ok(())
     }
 
     fn labels(&self, mesh: &TriMesh, sources: &[SurfacePoint], phi: &[f64]) -> Vec<i32> {
