@@ -15,8 +15,14 @@
 //! * [`procrustes`]: rigid (orthogonal) alignment of two point sets.
 //! * [`isomap`]: Isomap of a point cloud.
 //! * [`canonical`]: the canonical form of a mesh (Elad and Kimmel).
+//! * [`descriptor`]: geodesic shape descriptors (distance distribution,
+//!   eccentricity, canonical-form moments) and their distance, for retrieval.
+//! * [`benchmark`]: a generated retrieval benchmark of articulated shapes
+//!   (classes × poses, with noise and remeshing).
 
+pub mod benchmark;
 pub mod canonical;
+pub mod descriptor;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
