@@ -112,6 +112,8 @@ pub enum Command {
     DistanceMatrix(shape::DistanceMatrixArgs),
     /// Bending-invariant canonical form of a mesh file (MDS of its geodesic distances), written as PLY.
     Embed(shape::EmbedArgs),
+    /// Geodesic shape descriptor of a mesh file (distance and eccentricity histograms, canonical-form moments), as JSON.
+    Descriptor(shape::DescriptorArgs),
 }
 
 /// Entry point of the binary.
@@ -145,6 +147,7 @@ pub fn main() -> ExitCode {
             shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)
         }
         Some(Command::Embed(args)) => shape::run_embed(&args).map_err(anyhow::Error::msg),
+        Some(Command::Descriptor(args)) => shape::run_descriptor(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {
