@@ -95,6 +95,7 @@ impl Application {
                 settings.path_cache_bytes,
             )),
 
+            collections: Arc::new(crate::collections::Collections::new(jobs.db().clone())),
             jobs: Arc::new(jobs),
         };
         let router = http::router(state.clone(), &settings);

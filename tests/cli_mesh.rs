@@ -266,3 +266,56 @@ fn bad_inputs_exit_non_zero_with_one_line_naming_the_problem() {
     }
     assert!(!out.exists(), "no output is written on failure");
 }
+
+/// `geodex descriptor`: the operation's descriptor as JSON, the same as the
+/// library's; a bad option is refused naming its flag.
+#[test]
+fn descriptor_writes_the_library_descriptor_and_names_the_flag() {
+    use geodex::numerics::mesh::Topology;
+    use geodex::numerics::shape::descriptor::{descriptor, DescriptorOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, bytes) = sphere_obj(&dir);
+    let out = dir.path().join("d.json");
+    let run = Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .args(["descriptor", "--mesh", s(&mesh), "--landmarks", "12"])
+        .args(["--bins", "8", "--out", s(&out)])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let got: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let loaded = read_mesh(&bytes, Some(MeshFormat::Obj), &MeshLimits::default()).unwrap();
+    let m = &loaded.mesh;
+    let want = descriptor(
+        m,
+        &Topology::new(m),
+        &DescriptorOptions {
+            landmarks: 12,
+            bins: 8,
+            method: MeshMethod::FastMarching,
+        },
+        None,
+        &Control::new(),
+    )
+    .unwrap();
+    let vector: Vec<f64> = got["vector"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(vector.len(), 2 * 8 + 9);
+    for (a, b) in vector.iter().zip(want.to_vector()) {
+        assert!((a - b).abs() < 1e-9, "{a} vs {b}");
+    }
+    let bad = Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .args(["descriptor", "--mesh", s(&mesh), "--bins", "1"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--bins"), "{err}");
+}

@@ -263,6 +263,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"mesh": mesh, "landmarks": 200, "method": "exact"}),
         ),
         (
+            "mesh.descriptor",
+            "/v1/mesh/descriptor",
+            json!({"mesh": mesh, "landmarks": 200, "method": "exact"}),
+        ),
+        (
             "points.isomap",
             "/v1/points/isomap",
             json!({"points": points, "k": 12, "landmarks": 1000}),

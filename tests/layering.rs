@@ -38,6 +38,7 @@ use std::path::{Path, PathBuf};
 const ABOVE_NUMERICS: &[&str] = &[
     "http",
     "jobs",
+    "collections",
     "datasets",
     "ops",
     "io",
@@ -50,11 +51,20 @@ const ABOVE_NUMERICS: &[&str] = &[
 /// Crates `numerics` must not use: no async, HTTP, storage, JSON or schema.
 const NOT_IN_NUMERICS: &[&str] = &["tokio", "axum", "sqlx", "serde", "serde_json", "utoipa"];
 /// Modules of the crate above `io`.
-const ABOVE_IO: &[&str] = &["http", "jobs", "datasets", "ops", "pool", "app", "cli"];
+const ABOVE_IO: &[&str] = &[
+    "http",
+    "jobs",
+    "collections",
+    "datasets",
+    "ops",
+    "pool",
+    "app",
+    "cli",
+];
 /// Crates `io` must not use.
 const NOT_IN_IO: &[&str] = &["tokio", "axum", "sqlx"];
 /// The layers below HTTP (rule 3).
-const BELOW_HTTP: &[&str] = &["jobs", "ops", "datasets", "io"];
+const BELOW_HTTP: &[&str] = &["jobs", "collections", "ops", "datasets", "io"];
 /// Every external crate a rule names (the scanner records only these).
 const WATCHED_CRATES: &[&str] = &["tokio", "axum", "sqlx", "serde", "serde_json", "utoipa"];
 

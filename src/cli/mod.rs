@@ -117,6 +117,8 @@ pub enum Command {
     ShapeEmbed(embedding::ShapeEmbedArgs),
     /// Isomap embedding of a point-cloud file (an N × D array).
     Isomap(embedding::IsomapArgs),
+    /// Geodesic shape descriptor of a mesh file (distance and eccentricity histograms, canonical-form moments), as JSON.
+    Descriptor(shape::DescriptorArgs),
 }
 
 /// Entry point of the binary.
@@ -152,6 +154,7 @@ pub fn main() -> ExitCode {
         Some(Command::Embed(args)) => shape::run_embed(&args).map_err(anyhow::Error::msg),
         Some(Command::ShapeEmbed(args)) => embedding::run_shape_embed(&args).map_err(Into::into),
         Some(Command::Isomap(args)) => embedding::run_isomap(&args).map_err(Into::into),
+        Some(Command::Descriptor(args)) => shape::run_descriptor(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

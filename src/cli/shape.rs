@@ -1,12 +1,15 @@
-//! `geodex distance-matrix` and `geodex embed`: geodesic distance matrices
-//! and canonical forms of a mesh file, for batch users.
+//! `geodex distance-matrix`, `geodex embed` and `geodex descriptor`:
+//! geodesic distance matrices, canonical forms and shape descriptors of a
+//! mesh file, for batch users.
 //!
 //! Each builds the request of its endpoint (`POST /v1/mesh/distance-matrix`,
-//! `POST /v1/mesh/embed`) and runs it through the same operation.
+//! `POST /v1/mesh/embed`, `POST /v1/mesh/descriptor`) and runs it through
+//! the same operation.
 //!
 //! ```text
 //! geodex distance-matrix --mesh bunny.ply --landmarks 500 --method heat --out D.npy
 //! geodex embed --mesh cat.off --landmarks 300 --out form.ply --coordinates X.npy
+//! geodex descriptor --mesh cat.off --landmarks 32 --bins 32 --out cat.json
 //! ```
 
 use std::path::PathBuf;
@@ -17,6 +20,7 @@ use clap::Args;
 use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, One};
 use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write::encode_by_extension;
+use crate::ops::mesh_descriptor::MeshDescriptorRequest;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
 use crate::ops::spec::mesh::MeshMethodSpec;
@@ -85,6 +89,33 @@ pub struct EmbedArgs {
     pub coordinates: Option<PathBuf>,
 }
 
+/// Flags of `geodex descriptor`.
+#[derive(Debug, Clone, Args)]
+pub struct DescriptorArgs {
+    /// The mesh (one connected component): OBJ, PLY, OFF or STL.
+    #[arg(long, value_name = "MESH")]
+    pub mesh: PathBuf,
+    /// Farthest-point landmarks, 4 to 1000.
+    #[arg(long, default_value_t = 32)]
+    pub landmarks: usize,
+    /// Bins of each histogram, 2 to 1024.
+    #[arg(long, default_value_t = 32)]
+    pub bins: usize,
+    /// The method.
+    #[arg(long, value_parser = super::distance::method_value::<MeshMethodArg>, default_value = "fast_marching")]
+    pub method: MeshMethodArg,
+    /// Heat method time step factor m (t = m h²).
+    #[arg(long, default_value_t = 1.0)]
+    pub heat_m: f64,
+    /// Heat method Laplacian.
+    #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
+    pub laplacian: LaplacianArg,
+    /// Output: the descriptor as JSON (the `descriptor` of the endpoint's
+    /// answer); standard output when absent.
+    #[arg(long, value_name = "D.json")]
+    pub out: Option<PathBuf>,
+}
+
 fn method(m: MeshMethodArg) -> MeshMethodSpec {
     match m {
         MeshMethodArg::FastMarching => MeshMethodSpec::FastMarching,
@@ -99,7 +130,9 @@ fn run_on_mesh(request: Box<dyn DynOperation>, mesh: &std::path::Path) -> Result
     let input = load_mesh_file(mesh)?;
     let flags = FlagMap::new()
         .field("sources", "--source-vertex")
-        .field("heat", "--heat-m");
+        .field("heat", "--heat-m")
+        .field("landmarks", "--landmarks")
+        .field("bins", "--bins");
     run_operation(request, One(Arc::new(input)), &flags).map_err(|e| e.to_string())
 }
 
@@ -164,5 +197,31 @@ pub fn run_embed(args: &EmbedArgs) -> Result<(), String> {
         output.document["explained_variance"],
         output.document["stress"]
     );
+    Ok(())
+}
+
+/// Runs `geodex descriptor`.
+pub fn run_descriptor(args: &DescriptorArgs) -> Result<(), String> {
+    let request = MeshDescriptorRequest {
+        mesh: "file".into(),
+        landmarks: args.landmarks,
+        bins: args.bins,
+        method: method(args.method),
+        heat: args.laplacian.heat(args.heat_m),
+    };
+    let output = run_on_mesh(Box::new(request), &args.mesh)?;
+    let text = serde_json::to_string_pretty(&output.document["descriptor"])
+        .map_err(|e| format!("descriptor: {e}"))?;
+    match &args.out {
+        Some(p) => {
+            std::fs::write(p, text + "\n").map_err(|e| format!("--out {}: {e}", p.display()))?;
+            eprintln!(
+                "geodex: descriptor ({} values) written to {}",
+                2 * args.bins + crate::numerics::shape::descriptor::MOMENTS,
+                p.display()
+            );
+        }
+        None => println!("{text}"),
+    }
     Ok(())
 }

@@ -59,6 +59,9 @@ pub struct AppState {
 
     /// The durable job queue.
     pub jobs: Arc<crate::jobs::Jobs>,
+
+    /// Shape collections, in the jobs' database.
+    pub collections: Arc<crate::collections::Collections>,
 }
 
 impl AppState {
@@ -103,6 +106,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::mesh::remesh))
         .routes(routes!(routes::mesh::distance_matrix))
         .routes(routes!(routes::mesh::embed))
+        .routes(routes!(routes::mesh::descriptor))
         .routes(routes!(routes::points::isomap))
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))
@@ -111,6 +115,16 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::jobs::get))
         .routes(routes!(routes::jobs::cancel))
         .routes(routes!(routes::jobs::result))
+        .routes(routes!(
+            routes::collections::create_collection,
+            routes::collections::list_collections
+        ))
+        .routes(routes!(
+            routes::collections::get_collection,
+            routes::collections::delete_collection
+        ))
+        .routes(routes!(routes::collections::add_shape))
+        .routes(routes!(routes::collections::query_collection))
 }
 
 /// The complete application: API routes, `/openapi.json`, `/docs`, the

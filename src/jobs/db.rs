@@ -239,13 +239,23 @@ pub enum JobDb {
 }
 
 fn migrator() -> Migrator {
-    let mut m = Migrator::with_migrations(vec![Migration::new(
-        1,
-        Cow::Borrowed("jobs"),
-        MigrationType::Simple,
-        include_str!("../../migrations/0001_jobs.sql").into_sql_str(),
-        false,
-    )]);
+    let mut m = Migrator::with_migrations(vec![
+        Migration::new(
+            1,
+            Cow::Borrowed("jobs"),
+            MigrationType::Simple,
+            include_str!("../../migrations/0001_jobs.sql").into_sql_str(),
+            false,
+        ),
+        // The shape collections (`crate::collections`) share the database.
+        Migration::new(
+            2,
+            Cow::Borrowed("collections"),
+            MigrationType::Simple,
+            include_str!("../../migrations/0002_collections.sql").into_sql_str(),
+            false,
+        ),
+    ]);
     m.dangerous_set_table_name("geodex_migrations");
     m
 }

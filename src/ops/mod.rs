@@ -44,6 +44,7 @@ pub mod grid_skeleton;
 pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
 pub mod grid_tomography;
+pub mod mesh_descriptor;
 pub mod mesh_distance;
 pub mod mesh_distance_matrix;
 pub mod mesh_embed;

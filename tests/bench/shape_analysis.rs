@@ -7,7 +7,13 @@
 //! cargo bench --bench shape_analysis -- matrix 7 500 heat               # 500 landmark rows, icosphere level 7
 //! cargo bench --bench shape_analysis -- matrix 7 500 heat /tmp/ico7      # also writes /tmp/ico7.obj and its landmarks
 //! cargo bench --bench shape_analysis -- embed 7 500 heat                # landmark-MDS canonical form, end to end
+//! cargo bench --bench shape_analysis -- retrieval 10 5 1500 3000 64 32  # 11 classes × 10 poses of 1500..3000 vertices
 //! ```
+//!
+//! `retrieval POSES LEVEL MIN MAX LANDMARKS BINS`: the generated benchmark
+//! of articulated shapes (`numerics::shape::benchmark`, icosphere `LEVEL`,
+//! remeshed to `MIN..MAX` vertices), every shape queried against the others
+//! by descriptor distance; prints NN, first tier, second tier, DCG.
 //!
 //! Prints one JSON line per case; `tests/bench/compare_isomap.py` runs the
 //! Isomap case beside scikit-learn's on the same file. Threads: rayon's
@@ -18,7 +24,11 @@ use std::time::Instant;
 use geodex::io::{self, ArrayData};
 use geodex::numerics::mesh::shapes::icosphere;
 use geodex::numerics::mesh::{HeatOptions, HeatSolver, MeshMethod, Topology};
+use geodex::numerics::shape::benchmark::{
+    benchmark_shape, classes, retrieval_scores, BenchmarkOptions,
+};
 use geodex::numerics::shape::canonical::{canonical_form, CanonicalOptions};
+use geodex::numerics::shape::descriptor::{descriptor, descriptor_distance, DescriptorOptions};
 use geodex::numerics::shape::isomap::{isomap, swiss_roll, IsomapOptions};
 use geodex::numerics::shape::matrix::{distance_rows, landmarks, Symmetry};
 use geodex::numerics::Control;
@@ -195,11 +205,67 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
-        _ => {
-            return Err(
-                "usage: shape_analysis roll|isomap|matrix|embed ... (see the file's docs)".into(),
-            )
+        Some("retrieval") => {
+            use rayon::prelude::*;
+            let poses: usize = arg(&args, 1, 10);
+            let bench = BenchmarkOptions {
+                level: arg(&args, 2, 5),
+                min_vertices: arg(&args, 3, 1500),
+                max_vertices: arg(&args, 4, 3000),
+                ..BenchmarkOptions::default()
+            };
+            let options = DescriptorOptions {
+                landmarks: arg(&args, 5, 64),
+                bins: arg(&args, 6, 32),
+                method: MeshMethod::FastMarching,
+            };
+            let classes = classes();
+            let jobs: Vec<(usize, usize)> = (0..classes.len())
+                .flat_map(|c| (0..poses).map(move |p| (c, p)))
+                .collect();
+            let started = Instant::now();
+            let shapes = jobs
+                .par_iter()
+                .map(|&(c, p)| benchmark_shape(&classes[c], c, p, &bench, &control))
+                .collect::<Result<Vec<_>, _>>()?;
+            let generated = started.elapsed().as_secs_f64();
+            let started = Instant::now();
+            let described = shapes
+                .par_iter()
+                .map(|m| descriptor(m, &Topology::new(m), &options, None, &control))
+                .collect::<Result<Vec<_>, _>>()?;
+            let describe = started.elapsed().as_secs_f64();
+            let mut matrix = Vec::with_capacity(described.len());
+            for a in &described {
+                let row = described
+                    .iter()
+                    .map(|b| descriptor_distance(a, b))
+                    .collect::<Result<Vec<_>, _>>()?;
+                matrix.push(row);
+            }
+            let labels: Vec<usize> = jobs.iter().map(|j| j.0).collect();
+            let s = retrieval_scores(&matrix, &labels);
+            let vertices: Vec<usize> = shapes.iter().map(|m| m.num_vertices()).collect();
+            println!(
+                "{{\"tool\": \"geodex\", \"case\": \"retrieval\", \"classes\": {}, \"poses\": {poses}, \
+                 \"min_vertices\": {}, \"max_vertices\": {}, \"landmarks\": {}, \"bins\": {}, \
+                 \"nn\": {:.4}, \"first_tier\": {:.4}, \"second_tier\": {:.4}, \"dcg\": {:.4}, \
+                 \"generate_seconds\": {generated:.3}, \"describe_seconds\": {describe:.3}, \"threads\": {threads}}}",
+                classes.len(),
+                vertices.iter().min().copied().unwrap_or(0),
+                vertices.iter().max().copied().unwrap_or(0),
+                options.landmarks,
+                options.bins,
+                s.nearest_neighbour,
+                s.first_tier,
+                s.second_tier,
+                s.dcg
+            );
         }
+        _ => return Err(
+            "usage: shape_analysis roll|isomap|matrix|embed|retrieval ... (see the file's docs)"
+                .into(),
+        ),
     }
     Ok(())
 }

@@ -265,6 +265,19 @@ def every_operation(run: Run) -> None:
     run.post("mesh", "distance_matrix", "MeshDistanceMatrixRequest",
              {"mesh": mesh, "landmarks": 4, "method": "heat"})
     run.post("mesh", "embed", "MeshEmbedRequest", {"mesh": mesh, "landmarks": 40})
+    run.post("mesh", "descriptor", "MeshDescriptorRequest", {"mesh": mesh, "landmarks": 16, "bins": 8})
+
+    # collections
+    created = run.post("collections", "create_collection", "CreateCollection",
+                       {"name": "poses", "descriptor": {"landmarks": 16, "bins": 8}}, status=201)
+    col = created.parsed.id
+    run.post("collections", "add_shape", "AddShape", {"mesh": mesh, "name": "torus", "label": "torus"},
+             status=201, id=col)
+    found = run.post("collections", "query_collection", "QueryCollection", {"mesh": mesh, "k": 5}, id=col)
+    assert found.parsed.matches[0].shape.label == "torus", found.parsed
+    run.call("collections", "list_collections", 200)
+    run.call("collections", "get_collection", 200, col)
+    run.call("collections", "delete_collection", 204, col)
     run.post("points", "isomap", "PointsIsomapRequest", {"points": pts, "k": 8, "dimensions": 2})
 
     # operations

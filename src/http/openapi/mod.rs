@@ -53,6 +53,7 @@ request and an answer example recorded from a real call.",
         (name = "points", description = "Point clouds: Isomap."),
         (name = "operations", description = "Health, readiness and metrics."),
         (name = "jobs", description = "Durable background jobs: submit any operation, poll, cancel, download results."),
+        (name = "collections", description = "Shape collections: add meshes by their geodesic descriptors, query the nearest shapes of a mesh."),
     ),
     components(
         schemas(Problem, FileBytes),

@@ -18,6 +18,7 @@ use crate::http::extract::ApiJson;
 use crate::http::operation::{respond, run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
+use crate::ops::mesh_descriptor::{DescriptorValue, MeshDescriptorRequest};
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::MeshEmbedRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
@@ -334,6 +335,63 @@ pub async fn embed(
     Ok(Json(EmbedResponse {
         result,
         coordinates,
+        details,
+    }))
+}
+
+/// Answer of `POST /v1/mesh/descriptor`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DescriptorResponse {
+    /// The descriptor.
+    pub descriptor: DescriptorValue,
+    /// `method`, `bins`, `stats`.
+    #[serde(flatten)]
+    #[schema(value_type = Object)]
+    pub details: serde_json::Map<String, Value>,
+}
+
+/// Takes the descriptor out of a `mesh.descriptor` document.
+pub(crate) fn take_descriptor(
+    doc: &mut serde_json::Map<String, Value>,
+) -> Result<DescriptorValue, ApiError> {
+    let v = doc
+        .remove("descriptor")
+        .ok_or_else(|| ApiError::internal("the descriptor is missing from the answer"))?;
+    serde_json::from_value(v).map_err(ApiError::internal)
+}
+
+/// `POST /v1/mesh/descriptor`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/descriptor",
+    tag = "mesh",
+    summary = "Geodesic shape descriptor of a triangle mesh",
+    description = "The descriptor that shape collections compare (`/v1/collections`): from `landmarks` \
+farthest-point landmarks and their geodesic distances, the area-weighted histogram of distances over the \
+geodesic diameter, the histogram of eccentricities (mean distance to the landmarks over the diameter), and \
+nine moments of the landmark-MDS canonical form. Invariant to rigid motion, scale, bending and remeshing. \
+A mesh of several components gets a 422 naming `mesh`.",
+    request_body(content((MeshDescriptorRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed.", body = DescriptorResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+    )
+)]
+pub async fn descriptor(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshDescriptorRequest>,
+) -> Result<Json<DescriptorResponse>, ApiError> {
+    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
+    let descriptor = take_descriptor(&mut details)?;
+    Ok(Json(DescriptorResponse {
+        descriptor,
         details,
     }))
 }

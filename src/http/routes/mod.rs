@@ -12,12 +12,14 @@
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`inverse`]: `POST /v1/grid/tomography`, `POST /v1/grid/fit-metric`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
-//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed}`.
+//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed,descriptor}`.
 //! * [`points`]: `POST /v1/points/isomap`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
+//! * [`collections`]: `/v1/collections`: shape collections and their nearest-shape queries.
 //! * [`playground`]: the interactive page at `/playground` (`/` redirects to it).
 
+pub mod collections;
 pub mod datasets;
 pub mod docs;
 pub mod gradient;

@@ -17,8 +17,14 @@
 //! * [`canonical`]: the canonical form of a mesh (Elad and Kimmel).
 //! * [`mask`]: inner distances of a 2D or 3D shape given as a mask, and its
 //!   canonical form.
+//! * [`descriptor`]: geodesic shape descriptors (distance distribution,
+//!   eccentricity, canonical-form moments) and their distance, for retrieval.
+//! * [`benchmark`]: a generated retrieval benchmark of articulated shapes
+//!   (classes × poses, with noise and remeshing).
 
+pub mod benchmark;
 pub mod canonical;
+pub mod descriptor;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
