@@ -112,6 +112,8 @@ pub enum Command {
     DistanceMatrix(shape::DistanceMatrixArgs),
     /// Bending-invariant canonical form of a mesh file (MDS of its geodesic distances), written as PLY.
     Embed(shape::EmbedArgs),
+    /// Correspondence between two near-isometric mesh files (a point of the second for each vertex of the first).
+    Correspond(shape::CorrespondArgs),
 }
 
 /// Entry point of the binary.
@@ -145,6 +147,7 @@ pub fn main() -> ExitCode {
             shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)
         }
         Some(Command::Embed(args)) => shape::run_embed(&args).map_err(anyhow::Error::msg),
+        Some(Command::Correspond(args)) => shape::run_correspond(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

@@ -76,6 +76,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::mesh_remesh::MeshRemeshRequest>(),
     entry::<super::mesh_distance_matrix::MeshDistanceMatrixRequest>(),
     entry::<super::mesh_embed::MeshEmbedRequest>(),
+    entry::<super::mesh_correspond::MeshCorrespondRequest>(),
     entry::<super::points_isomap::PointsIsomapRequest>(),
 ];
 

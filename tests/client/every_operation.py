@@ -264,6 +264,7 @@ def every_operation(run: Run) -> None:
     run.post("mesh", "distance_matrix", "MeshDistanceMatrixRequest",
              {"mesh": mesh, "landmarks": 4, "method": "heat"})
     run.post("mesh", "embed", "MeshEmbedRequest", {"mesh": mesh, "landmarks": 40})
+    run.post("mesh", "correspond", "MeshCorrespondRequest", {"a": mesh, "b": mesh, "landmarks": 20})
     run.post("points", "isomap", "PointsIsomapRequest", {"points": pts, "k": 8, "dimensions": 2})
 
     # operations

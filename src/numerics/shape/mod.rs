@@ -15,8 +15,12 @@
 //! * [`procrustes`]: rigid (orthogonal) alignment of two point sets.
 //! * [`isomap`]: Isomap of a point cloud.
 //! * [`canonical`]: the canonical form of a mesh (Elad and Kimmel).
+//! * [`correspond`]: correspondence between two near-isometric meshes
+//!   (canonical forms, rigid alignment over every flip, refinement by
+//!   geodesic distances to matched landmarks).
 
 pub mod canonical;
+pub mod correspond;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
