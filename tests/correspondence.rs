@@ -17,7 +17,7 @@
 //!   polyhedra: every face is the same rectangle or trapezoid, standing on
 //!   the same polygon side);
 //! * three tubes of radius 0.15 joined by mitred joints, in two poses
-//!   (bends of 10°/10° and 40°/−30° in different planes): isometric along
+//!   (bends of 10°/10° and 40°/30° in different planes): isometric along
 //!   the tubes, each generator stretched or shortened by `r tan(β/2)` over
 //!   the three rings next to a joint;
 //! * a symmetric pair (a rectangle and the rectangle rolled), whose mirror
@@ -338,7 +338,7 @@ fn a_tabbed_tube_and_the_same_over_a_dented_section() {
 fn three_tubes_in_two_poses() {
     let d = std::f64::consts::PI / 180.0;
     let a = articulated([10.0 * d, 10.0 * d], [0.0, 90.0 * d]);
-    let b = articulated([40.0 * d, -30.0 * d], [0.0, 90.0 * d]);
+    let b = articulated([40.0 * d, 30.0 * d], [0.0, 90.0 * d]);
     let c = run(&a, &b);
     let e = errors(&b, &c, |v| v);
     let within = report("articulated tubes", &a, &c, &e);
