@@ -74,8 +74,9 @@ async fn correspond_matches_a_moved_copy_and_names_the_bad_field() {
     let a = upload_mesh(&app, &trapezoid(1.0, 0.0)).await;
     let b = upload_mesh(&app, &trapezoid(1.0, 0.5)).await;
     let res = post(&app, json!({"a": a, "b": b, "landmarks": 20})).await;
-    assert_eq!(res.status(), 200);
+    let status = res.status();
     let body: serde_json::Value = res.json().await.expect("json");
+    assert_eq!(status, 200, "{body}");
     assert_eq!(body["face"]["shape"], json!([121]));
     assert_eq!(body["bary"]["shape"], json!([121, 3]));
     assert_eq!(body["confidence"]["shape"], json!([121]));
