@@ -140,15 +140,15 @@ impl Operation for MeshCorrespondRequest {
             .candidates
             .iter()
             .skip(1)
-            .find(|c| c.separation >= SEPARATION);
+            .find(|c| c.refined.is_some() && c.separation >= SEPARATION);
         let document = serde_json::json!({
             "landmarks": r.landmarks_a.len(),
             "landmarks_a": r.landmarks_a,
             "landmarks_b": r.landmarks_b,
             "symmetric": r.symmetric,
             "flipped": best.is_some_and(|c| c.determinant < 0.0),
-            "distortion": best.map(|c| c.distortion),
-            "alternative_distortion": second.map(|c| c.distortion),
+            "distortion": best.and_then(|c| c.refined),
+            "alternative_distortion": r.alternative,
             "alternative_flipped": second.map(|c| c.determinant < 0.0),
             "candidates": r.candidates.len(),
             "diameter": r.diameter,
