@@ -1,7 +1,7 @@
 //! `geodex mesh-distance` end to end: the built binary on mesh files in a
 //! temporary directory, D.npy / L.npy compared with the library's
 //! `mesh_distance` on the same (parsed) mesh, and one clear stderr line for
-//! each kind of bad input.
+//! each kind of bad input. Also `geodex correspond` on two mesh files.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -318,4 +318,67 @@ fn descriptor_writes_the_library_descriptor_and_names_the_flag() {
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("--bins"), "{err}");
+/// A flat right trapezoid of 121 vertices, scaled by `s` and turned by `angle`.
+fn trapezoid_obj(dir: &TempDir, name: &str, s: f64, angle: f64) -> PathBuf {
+    let m = geodex::numerics::mesh::shapes::flat_square(10, 1.0, 0.0);
+    let (c, sn) = (angle.cos(), angle.sin());
+    let pos = m
+        .positions()
+        .iter()
+        .map(|p| {
+            let (x, y) = (2.0 * p[0], p[1] * (0.4 + 0.6 * p[0]));
+            [s * (c * x - sn * y), s * (sn * x + c * y), 0.0]
+        })
+        .collect();
+    let mesh = geodex::numerics::mesh::TriMesh::new(pos, m.faces().to_vec()).unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, write_obj(&mesh)).unwrap();
+    p
+}
+
+#[test]
+fn correspond_writes_the_matches_and_names_a_bad_scale() {
+    let dir = TempDir::new().unwrap();
+    let a = trapezoid_obj(&dir, "a.obj", 1.0, 0.0);
+    let b = trapezoid_obj(&dir, "b.obj", 1.0, 0.7);
+    let out = dir.path().join("matched.ply");
+    let face = dir.path().join("f.npy");
+    let bary = dir.path().join("l.npy");
+    let run = |b: &Path, extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_geodex"))
+            .arg("correspond")
+            .args([
+                "--a",
+                s(&a),
+                "--b",
+                s(b),
+                "--landmarks",
+                "20",
+                "--out",
+                s(&out),
+            ])
+            .args(["--face", s(&face), "--bary", s(&bary)])
+            .args(extra)
+            .output()
+            .expect("the geodex binary runs")
+    };
+    let o = run(&b, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let f: ndarray::Array1<i32> = read_npy(&face).unwrap();
+    let l: ndarray::Array2<f64> = read_npy(&bary).unwrap();
+    assert_eq!((f.len(), l.dim()), (121, (121, 3)));
+    let ply = std::fs::read(&out).unwrap();
+    let header = String::from_utf8_lossy(&ply[..ply.len().min(2000)]).to_string();
+    for p in ["match_face", "match_vertex", "match_bary0", "confidence"] {
+        assert!(header.contains(p), "{p} missing from {header}");
+    }
+    // Twice the size: one line naming --b and the way out (--scale).
+    let big = trapezoid_obj(&dir, "big.obj", 2.0, 0.7);
+    let o = run(&big, &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    let last = err.lines().last().unwrap_or("");
+    assert!(last.contains("--b") && last.contains("scale"), "{err}");
+    let o = run(&big, &["--scale"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

@@ -268,6 +268,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"mesh": mesh, "landmarks": 200, "method": "exact"}),
         ),
         (
+            "mesh.correspond",
+            "/v1/mesh/correspond",
+            json!({"a": mesh, "b": mesh, "landmarks": 500}),
+        ),
+        (
             "points.isomap",
             "/v1/points/isomap",
             json!({"points": points, "k": 12, "landmarks": 1000}),

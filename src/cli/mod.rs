@@ -119,6 +119,8 @@ pub enum Command {
     Isomap(embedding::IsomapArgs),
     /// Geodesic shape descriptor of a mesh file (distance and eccentricity histograms, canonical-form moments), as JSON.
     Descriptor(shape::DescriptorArgs),
+    /// Correspondence between two near-isometric mesh files (a point of the second for each vertex of the first).
+    Correspond(shape::CorrespondArgs),
 }
 
 /// Entry point of the binary.
@@ -155,6 +157,7 @@ pub fn main() -> ExitCode {
         Some(Command::ShapeEmbed(args)) => embedding::run_shape_embed(&args).map_err(Into::into),
         Some(Command::Isomap(args)) => embedding::run_isomap(&args).map_err(Into::into),
         Some(Command::Descriptor(args)) => shape::run_descriptor(&args).map_err(anyhow::Error::msg),
+        Some(Command::Correspond(args)) => shape::run_correspond(&args).map_err(anyhow::Error::msg),
         None => crate::app::serve(cli.serve),
     };
     match result {

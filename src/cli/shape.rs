@@ -1,15 +1,17 @@
-//! `geodex distance-matrix`, `geodex embed` and `geodex descriptor`:
-//! geodesic distance matrices, canonical forms and shape descriptors of a
-//! mesh file, for batch users.
+//! `geodex distance-matrix`, `geodex embed`, `geodex descriptor` and
+//! `geodex correspond`: geodesic distance matrices, canonical forms and
+//! shape descriptors of a mesh file, and the correspondence between two
+//! mesh files, for batch users.
 //!
 //! Each builds the request of its endpoint (`POST /v1/mesh/distance-matrix`,
-//! `POST /v1/mesh/embed`, `POST /v1/mesh/descriptor`) and runs it through
+//! `POST /v1/mesh/embed`, `POST /v1/mesh/descriptor`, `POST /v1/mesh/correspond`) and runs it through
 //! the same operation.
 //!
 //! ```text
 //! geodex distance-matrix --mesh bunny.ply --landmarks 500 --method heat --out D.npy
 //! geodex embed --mesh cat.off --landmarks 300 --out form.ply --coordinates X.npy
 //! geodex descriptor --mesh cat.off --landmarks 32 --bins 32 --out cat.json
+//! geodex correspond --a cat0.off --b cat1.off --out matched.ply --face F.npy --bary L.npy
 //! ```
 
 use std::path::PathBuf;
@@ -21,11 +23,17 @@ use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodAr
 use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write::encode_by_extension;
 use crate::ops::mesh_descriptor::MeshDescriptorRequest;
+use crate::io::mesh::write::VertexProperty;
+use crate::io::ArrayData;
+use crate::ops::mesh_correspond::MeshCorrespondRequest;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
+use crate::ops::spec::mesh::MeshInput;
 use crate::ops::spec::mesh::MeshMethodSpec;
 use crate::ops::spec::shape::SymmetrySpec;
-use crate::ops::{DynOperation, OpOutput};
+use crate::ops::{DynOperation, InputArray, Inputs, OpOutput};
+use crate::problem::ApiError;
+use crate::runner::LoadInputs;
 
 /// Flags of `geodex distance-matrix`.
 #[derive(Debug, Clone, Args)]
@@ -223,5 +231,118 @@ pub fn run_descriptor(args: &DescriptorArgs) -> Result<(), String> {
         }
         None => println!("{text}"),
     }
+/// Flags of `geodex correspond`.
+#[derive(Debug, Clone, Args)]
+pub struct CorrespondArgs {
+    /// The first mesh (one connected component): every vertex gets a match.
+    #[arg(long, value_name = "MESH")]
+    pub a: PathBuf,
+    /// The second mesh (one connected component), a near-isometric pose of the first.
+    #[arg(long, value_name = "MESH")]
+    pub b: PathBuf,
+    /// Farthest-point landmarks on each mesh (8 to 500).
+    #[arg(long, default_value_t = 60)]
+    pub landmarks: usize,
+    /// Rescale the second mesh to the area of the first before matching.
+    #[arg(long)]
+    pub scale: bool,
+    /// Output: the first mesh with per-vertex `match_face`, `match_vertex`,
+    /// `match_bary0..2` and `confidence` (`.ply`, `.json`, after the extension).
+    #[arg(long, value_name = "MATCHED.ply")]
+    pub out: PathBuf,
+    /// Output: the face of the second mesh holding each match (int32 NPY).
+    #[arg(long, value_name = "F.npy")]
+    pub face: Option<PathBuf>,
+    /// Output: the barycentric coordinates of each match, n × 3 f64 NPY.
+    #[arg(long, value_name = "L.npy")]
+    pub bary: Option<PathBuf>,
+    /// Output: the vertex of the second mesh nearest each match (int32 NPY).
+    #[arg(long, value_name = "V.npy")]
+    pub vertex: Option<PathBuf>,
+    /// Output: the confidence of each match (f64 NPY).
+    #[arg(long, value_name = "C.npy")]
+    pub confidence: Option<PathBuf>,
+}
+
+/// The two meshes of `geodex correspond`, under the ids `a` and `b`.
+struct Two(Arc<MeshInput>, Arc<MeshInput>);
+
+impl LoadInputs for Two {
+    async fn load(&mut self, _ids: Vec<(String, String)>) -> Result<(), ApiError> {
+        Ok(())
+    }
+}
+
+impl Inputs for Two {
+    fn get(&self, _id: &str) -> Option<InputArray> {
+        None
+    }
+    fn mesh(&self, id: &str) -> Option<Arc<MeshInput>> {
+        match id {
+            "a" => Some(self.0.clone()),
+            "b" => Some(self.1.clone()),
+            _ => None,
+        }
+    }
+}
+
+/// Runs `geodex correspond`.
+pub fn run_correspond(args: &CorrespondArgs) -> Result<(), String> {
+    let a = load_mesh_file(&args.a).map_err(|e| e.replacen("--mesh", "--a", 1))?;
+    let b = load_mesh_file(&args.b).map_err(|e| e.replacen("--mesh", "--b", 1))?;
+    let request = MeshCorrespondRequest {
+        a: "a".into(),
+        b: "b".into(),
+        landmarks: args.landmarks,
+        scale: args.scale,
+    };
+    let flags = FlagMap::new().field("a", "--a").field("b", "--b");
+    let output = run_operation(Box::new(request), Two(Arc::new(a), Arc::new(b)), &flags)
+        .map_err(|e| e.to_string())?;
+    let matched = output
+        .mesh
+        .as_ref()
+        .ok_or("the operation returned no mesh")?;
+    let mut props: Vec<VertexProperty<'_>> = Vec::new();
+    for (property, array) in &matched.vertex_properties {
+        match output.array(array) {
+            Some(ArrayData::F64(x)) => {
+                if let Some(s) = x.as_slice() {
+                    props.push(VertexProperty::F64(property, s));
+                }
+            }
+            Some(ArrayData::I32(x)) => {
+                if let Some(s) = x.as_slice() {
+                    props.push(VertexProperty::I32(property, s));
+                }
+            }
+            _ => {}
+        }
+    }
+    let bytes = encode_by_extension(&matched.mesh.mesh, &props, &args.out)
+        .map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    std::fs::write(&args.out, bytes).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    for (path, name, flag) in [
+        (&args.face, "face", "--face"),
+        (&args.bary, "bary", "--bary"),
+        (&args.vertex, "vertex", "--vertex"),
+        (&args.confidence, "confidence", "--confidence"),
+    ] {
+        if let Some(p) = path {
+            let x = output
+                .array(name)
+                .ok_or_else(|| format!("the operation returned no {name}"))?;
+            write_npy(p, x, flag)?;
+        }
+    }
+    eprintln!(
+        "geodex: {} matches written to {} (symmetric {}, distortion {}, alternative {}, mean confidence {})",
+        output.document["stats"]["vertices_a"],
+        args.out.display(),
+        output.document["symmetric"],
+        output.document["distortion"],
+        output.document["alternative_distortion"],
+        output.document["mean_confidence"],
+    );
     Ok(())
 }

@@ -12,6 +12,10 @@ use crate::ops::grid_paths::DistanceCache;
 use crate::ops::spec::mesh::MeshInput;
 use crate::ops::{InputArray, Inputs};
 
+/// Request fields other than `mesh` that name mesh datasets: the two
+/// meshes `a` and `b` of `mesh.correspond`.
+pub const OTHER_MESH_FIELDS: &[&str] = &["a", "b"];
+
 /// Why the inputs of a request could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
@@ -68,13 +72,16 @@ impl StoreInputs {
     }
 
     /// Loads every `(field, id)` not already present: a field named `mesh`
-    /// (or ending in `.mesh`) reads a mesh dataset, any other an array.
+    /// (or ending in `.mesh`, or one of [`OTHER_MESH_FIELDS`]) reads a mesh
+    /// dataset, any other an array.
     pub async fn load(&mut self, ids: Vec<(String, String)>) -> Result<(), InputError> {
         for (field, id) in ids {
             if self.arrays.contains_key(&id) || self.meshes.contains_key(&id) {
                 continue;
             }
-            let is_mesh = field == "mesh" || field.ends_with(".mesh");
+            let is_mesh = field == "mesh"
+                || field.ends_with(".mesh")
+                || OTHER_MESH_FIELDS.contains(&field.as_str());
             let loaded = if is_mesh {
                 self.store
                     .load_mesh(&id)

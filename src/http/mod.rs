@@ -107,6 +107,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::mesh::distance_matrix))
         .routes(routes!(routes::mesh::embed))
         .routes(routes!(routes::mesh::descriptor))
+        .routes(routes!(routes::mesh::correspond))
         .routes(routes!(routes::points::isomap))
         .routes(routes!(routes::health::healthz))
         .routes(routes!(routes::health::readyz))

@@ -24,6 +24,8 @@
 //! * [`mesh_distance_matrix`], [`mesh_embed`], [`points_isomap`]: shape
 //!   analysis: distance matrices, canonical forms, Isomap (shared pieces in
 //!   [`spec::shape`]).
+//! * [`mesh_correspond`]: `mesh.correspond`, the correspondence between two
+//!   near-isometric meshes.
 
 pub mod domain_mesh;
 pub mod grid_cost_gradient;
@@ -45,6 +47,7 @@ pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
 pub mod grid_tomography;
 pub mod mesh_descriptor;
+pub mod mesh_correspond;
 pub mod mesh_distance;
 pub mod mesh_distance_matrix;
 pub mod mesh_embed;

@@ -78,6 +78,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::mesh_distance_matrix::MeshDistanceMatrixRequest>(),
     entry::<super::mesh_embed::MeshEmbedRequest>(),
     entry::<super::mesh_descriptor::MeshDescriptorRequest>(),
+    entry::<super::mesh_correspond::MeshCorrespondRequest>(),
     entry::<super::points_isomap::PointsIsomapRequest>(),
 ];
 

@@ -278,6 +278,7 @@ def every_operation(run: Run) -> None:
     run.call("collections", "list_collections", 200)
     run.call("collections", "get_collection", 200, col)
     run.call("collections", "delete_collection", 204, col)
+    run.post("mesh", "correspond", "MeshCorrespondRequest", {"a": mesh, "b": mesh, "landmarks": 20})
     run.post("points", "isomap", "PointsIsomapRequest", {"points": pts, "k": 8, "dimensions": 2})
 
     # operations

@@ -4,6 +4,7 @@
 mod common;
 mod connections;
 mod conventions;
+mod correspond;
 mod datasets;
 mod errors;
 mod flow;

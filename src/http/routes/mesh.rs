@@ -3,7 +3,8 @@
 //! on the solver pool with the store's heat-factorisation cache, and store
 //! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
 //! Shape analysis: distance matrices (`/v1/mesh/distance-matrix`, an NPY
-//! matrix dataset) and canonical forms (`/v1/mesh/embed`, a mesh dataset).
+//! matrix dataset), canonical forms (`/v1/mesh/embed`, a mesh dataset) and
+//! correspondences (`/v1/mesh/correspond`, NPY arrays and a mesh dataset).
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -19,6 +20,7 @@ use crate::http::operation::{respond, run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
 use crate::ops::mesh_descriptor::{DescriptorValue, MeshDescriptorRequest};
+use crate::ops::mesh_correspond::MeshCorrespondRequest;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::MeshEmbedRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
@@ -345,6 +347,24 @@ pub struct DescriptorResponse {
     /// The descriptor.
     pub descriptor: DescriptorValue,
     /// `method`, `bins`, `stats`.
+/// Answer of `POST /v1/mesh/correspond`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CorrespondResponse {
+    /// The mesh `a` with per-vertex `match_face`, `match_vertex` (int),
+    /// `match_bary0..2` and `confidence` (double) (PLY).
+    pub result: DatasetRef,
+    /// For each vertex of `a`, the face of `b` holding its match (int32).
+    pub face: DatasetRef,
+    /// The barycentric coordinates of the match in that face, `n × 3` f64.
+    pub bary: DatasetRef,
+    /// The vertex of `b` nearest the match (int32).
+    pub vertex: DatasetRef,
+    /// The confidence of each match in `(0, 1]` (f64).
+    pub confidence: DatasetRef,
+    /// `landmarks`, `landmarks_a`, `landmarks_b`, `symmetric`, `flipped`,
+    /// `distortion`, `alternative_distortion`, `alternative_flipped`,
+    /// `candidates`, `diameter`, `confidence_scale`, `mean_confidence`,
+    /// `area_ratio`, `scale_factor`, `stats`.
     #[serde(flatten)]
     #[schema(value_type = Object)]
     pub details: serde_json::Map<String, Value>,
@@ -374,6 +394,21 @@ A mesh of several components gets a 422 naming `mesh`.",
     request_body(content((MeshDescriptorRequest = "application/json"))),
     responses(
         (status = 200, description = "Computed.", body = DescriptorResponse),
+/// `POST /v1/mesh/correspond`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/correspond",
+    tag = "mesh",
+    summary = "Correspondence between two near-isometric triangle meshes",
+    description = "Matches every vertex of mesh `a` to a point of mesh `b` (face and barycentric coordinates) \
+with a confidence, from geodesic distances only: landmark-MDS canonical forms of both, rigid alignment over every \
+flip of their principal axes, then refinement by the geodesic distances to matched landmarks. `symmetric` reports \
+an intrinsic symmetry (a mirror flip) that makes a second map almost as good, with both distortions. A mesh of \
+several components gets a 422 naming `a` or `b`; areas differing by more than a factor 1.2 get a 422 naming `b` \
+(give `scale: true` to rescale `b` first).",
+    request_body(content((MeshCorrespondRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = CorrespondResponse),
         (status = 400, response = crate::http::openapi::BadRequest),
         (status = 404, response = crate::http::openapi::NotFound),
         (status = 413, response = crate::http::openapi::PayloadTooLarge),
@@ -392,6 +427,26 @@ pub async fn descriptor(
     let descriptor = take_descriptor(&mut details)?;
     Ok(Json(DescriptorResponse {
         descriptor,
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn correspond(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshCorrespondRequest>,
+) -> Result<Json<CorrespondResponse>, ApiError> {
+    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
+    let result = take_ref(&mut details, "result")?;
+    let face = take_ref(&mut details, "face")?;
+    let bary = take_ref(&mut details, "bary")?;
+    let vertex = take_ref(&mut details, "vertex")?;
+    let confidence = take_ref(&mut details, "confidence")?;
+    details.remove("mesh_report");
+    Ok(Json(CorrespondResponse {
+        result,
+        face,
+        bary,
+        vertex,
+        confidence,
         details,
     }))
 }

@@ -21,10 +21,14 @@
 //!   eccentricity, canonical-form moments) and their distance, for retrieval.
 //! * [`benchmark`]: a generated retrieval benchmark of articulated shapes
 //!   (classes × poses, with noise and remeshing).
+//! * [`correspond`]: correspondence between two near-isometric meshes
+//!   (canonical forms, rigid alignment over every flip, refinement by
+//!   geodesic distances to matched landmarks).
 
 pub mod benchmark;
 pub mod canonical;
 pub mod descriptor;
+pub mod correspond;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
