@@ -318,6 +318,8 @@ fn descriptor_writes_the_library_descriptor_and_names_the_flag() {
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("--bins"), "{err}");
+}
+
 /// A flat right trapezoid of 121 vertices, scaled by `s` and turned by `angle`.
 fn trapezoid_obj(dir: &TempDir, name: &str, s: f64, angle: f64) -> PathBuf {
     let m = geodex::numerics::mesh::shapes::flat_square(10, 1.0, 0.0);

@@ -4,8 +4,8 @@
 //! mesh files, for batch users.
 //!
 //! Each builds the request of its endpoint (`POST /v1/mesh/distance-matrix`,
-//! `POST /v1/mesh/embed`, `POST /v1/mesh/descriptor`, `POST /v1/mesh/correspond`) and runs it through
-//! the same operation.
+//! `POST /v1/mesh/embed`, `POST /v1/mesh/descriptor`,
+//! `POST /v1/mesh/correspond`) and runs it through the same operation.
 //!
 //! ```text
 //! geodex distance-matrix --mesh bunny.ply --landmarks 500 --method heat --out D.npy
@@ -22,10 +22,10 @@ use clap::Args;
 use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, One};
 use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write::encode_by_extension;
-use crate::ops::mesh_descriptor::MeshDescriptorRequest;
 use crate::io::mesh::write::VertexProperty;
 use crate::io::ArrayData;
 use crate::ops::mesh_correspond::MeshCorrespondRequest;
+use crate::ops::mesh_descriptor::MeshDescriptorRequest;
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::{MeshEmbedRequest, SmacofSpec};
 use crate::ops::spec::mesh::MeshInput;
@@ -231,6 +231,9 @@ pub fn run_descriptor(args: &DescriptorArgs) -> Result<(), String> {
         }
         None => println!("{text}"),
     }
+    Ok(())
+}
+
 /// Flags of `geodex correspond`.
 #[derive(Debug, Clone, Args)]
 pub struct CorrespondArgs {

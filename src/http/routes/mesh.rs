@@ -3,8 +3,7 @@
 //! on the solver pool with the store's heat-factorisation cache, and store
 //! the mesh with its per-vertex `distance` and `label` as a new PLY dataset.
 //! Shape analysis: distance matrices (`/v1/mesh/distance-matrix`, an NPY
-//! matrix dataset), canonical forms (`/v1/mesh/embed`, a mesh dataset) and
-//! correspondences (`/v1/mesh/correspond`, NPY arrays and a mesh dataset).
+//! matrix dataset) and canonical forms (`/v1/mesh/embed`, a mesh dataset).
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -19,8 +18,8 @@ use crate::http::extract::ApiJson;
 use crate::http::operation::{respond, run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
-use crate::ops::mesh_descriptor::{DescriptorValue, MeshDescriptorRequest};
 use crate::ops::mesh_correspond::MeshCorrespondRequest;
+use crate::ops::mesh_descriptor::{DescriptorValue, MeshDescriptorRequest};
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::MeshEmbedRequest;
 use crate::ops::mesh_paths::MeshPathsRequest;
@@ -347,24 +346,6 @@ pub struct DescriptorResponse {
     /// The descriptor.
     pub descriptor: DescriptorValue,
     /// `method`, `bins`, `stats`.
-/// Answer of `POST /v1/mesh/correspond`.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct CorrespondResponse {
-    /// The mesh `a` with per-vertex `match_face`, `match_vertex` (int),
-    /// `match_bary0..2` and `confidence` (double) (PLY).
-    pub result: DatasetRef,
-    /// For each vertex of `a`, the face of `b` holding its match (int32).
-    pub face: DatasetRef,
-    /// The barycentric coordinates of the match in that face, `n × 3` f64.
-    pub bary: DatasetRef,
-    /// The vertex of `b` nearest the match (int32).
-    pub vertex: DatasetRef,
-    /// The confidence of each match in `(0, 1]` (f64).
-    pub confidence: DatasetRef,
-    /// `landmarks`, `landmarks_a`, `landmarks_b`, `symmetric`, `flipped`,
-    /// `distortion`, `alternative_distortion`, `alternative_flipped`,
-    /// `candidates`, `diameter`, `confidence_scale`, `mean_confidence`,
-    /// `area_ratio`, `scale_factor`, `stats`.
     #[serde(flatten)]
     #[schema(value_type = Object)]
     pub details: serde_json::Map<String, Value>,
@@ -394,6 +375,51 @@ A mesh of several components gets a 422 naming `mesh`.",
     request_body(content((MeshDescriptorRequest = "application/json"))),
     responses(
         (status = 200, description = "Computed.", body = DescriptorResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+    )
+)]
+pub async fn descriptor(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshDescriptorRequest>,
+) -> Result<Json<DescriptorResponse>, ApiError> {
+    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
+    let descriptor = take_descriptor(&mut details)?;
+    Ok(Json(DescriptorResponse {
+        descriptor,
+        details,
+    }))
+}
+
+/// Answer of `POST /v1/mesh/correspond`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CorrespondResponse {
+    /// The mesh `a` with per-vertex `match_face`, `match_vertex` (int),
+    /// `match_bary0..2` and `confidence` (double) (PLY).
+    pub result: DatasetRef,
+    /// For each vertex of `a`, the face of `b` holding its match (int32).
+    pub face: DatasetRef,
+    /// The barycentric coordinates of the match in that face, `n × 3` f64.
+    pub bary: DatasetRef,
+    /// The vertex of `b` nearest the match (int32).
+    pub vertex: DatasetRef,
+    /// The confidence of each match in `(0, 1]` (f64).
+    pub confidence: DatasetRef,
+    /// `landmarks`, `landmarks_a`, `landmarks_b`, `symmetric`, `flipped`,
+    /// `distortion`, `alternative_distortion`, `alternative_flipped`,
+    /// `candidates`, `diameter`, `confidence_scale`, `mean_confidence`,
+    /// `area_ratio`, `scale_factor`, `stats`.
+    #[serde(flatten)]
+    #[schema(value_type = Object)]
+    pub details: serde_json::Map<String, Value>,
+}
+
 /// `POST /v1/mesh/correspond`.
 #[utoipa::path(
     post,
@@ -417,16 +443,6 @@ several components gets a 422 naming `a` or `b`; areas differing by more than a 
         (status = 500, response = crate::http::openapi::InternalError),
         (status = 503, response = crate::http::openapi::Busy),
         (status = 504, response = crate::http::openapi::DeadlineExceeded),
-    )
-)]
-pub async fn descriptor(
-    State(state): State<AppState>,
-    ApiJson(request): ApiJson<MeshDescriptorRequest>,
-) -> Result<Json<DescriptorResponse>, ApiError> {
-    let mut details = respond(&state, Box::new(request), Instant::now()).await?;
-    let descriptor = take_descriptor(&mut details)?;
-    Ok(Json(DescriptorResponse {
-        descriptor,
         (status = 507, response = crate::http::openapi::InsufficientStorage),
     )
 )]

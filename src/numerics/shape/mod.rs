@@ -27,8 +27,8 @@
 
 pub mod benchmark;
 pub mod canonical;
-pub mod descriptor;
 pub mod correspond;
+pub mod descriptor;
 pub mod eigen;
 pub mod graph;
 pub mod isomap;
