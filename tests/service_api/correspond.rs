@@ -4,52 +4,16 @@
 //! way out (`scale`), which then works; a disconnected mesh is refused
 //! naming `a`.
 
-use geodex::io::mesh::write::write_obj;
-use geodex::io::{self, ArrayData};
+use geodex::io::ArrayData;
 use geodex::numerics::mesh::shapes::flat_square;
 use geodex::numerics::mesh::TriMesh;
 use serde_json::json;
 
 use crate::common::{problem, spawn, TestApp};
-
-async fn upload_mesh(app: &TestApp, mesh: &TriMesh) -> String {
-    let res = app
-        .client
-        .post(app.url("/v1/datasets"))
-        .header("content-type", "model/obj")
-        .body(write_obj(mesh))
-        .send()
-        .await
-        .expect("upload");
-    assert_eq!(res.status(), 201, "{:?}", res.text().await);
-    let meta: serde_json::Value = res.json().await.expect("json");
-    meta["id"].as_str().expect("id").to_string()
-}
+use crate::shape::{npy, upload_mesh};
 
 async fn post(app: &TestApp, body: serde_json::Value) -> reqwest::Response {
-    app.client
-        .post(app.url("/v1/mesh/correspond"))
-        .json(&body)
-        .send()
-        .await
-        .expect("post")
-}
-
-async fn npy(app: &TestApp, data_url: &serde_json::Value) -> ArrayData {
-    let res = app
-        .get(&format!(
-            "{}?format=npy",
-            data_url.as_str().expect("data_url")
-        ))
-        .await;
-    assert_eq!(res.status(), 200);
-    io::decode(
-        &res.bytes().await.expect("bytes"),
-        None,
-        &io::Limits::default(),
-    )
-    .expect("npy")
-    .array
+    crate::shape::post(app, "/v1/mesh/correspond", body).await
 }
 
 /// A flat right trapezoid (no symmetry) of 121 vertices, scaled by `s`,

@@ -10,7 +10,7 @@ use serde_json::json;
 
 use crate::common::{problem, spawn, TestApp};
 
-async fn upload_mesh(app: &TestApp, mesh: &TriMesh) -> String {
+pub(crate) async fn upload_mesh(app: &TestApp, mesh: &TriMesh) -> String {
     let res = app
         .client
         .post(app.url("/v1/datasets"))
@@ -24,7 +24,7 @@ async fn upload_mesh(app: &TestApp, mesh: &TriMesh) -> String {
     meta["id"].as_str().expect("id").to_string()
 }
 
-async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Response {
+pub(crate) async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Response {
     app.client
         .post(app.url(path))
         .json(&body)
@@ -33,7 +33,7 @@ async fn post(app: &TestApp, path: &str, body: serde_json::Value) -> reqwest::Re
         .expect("post")
 }
 
-async fn npy(app: &TestApp, data_url: &serde_json::Value) -> ArrayData {
+pub(crate) async fn npy(app: &TestApp, data_url: &serde_json::Value) -> ArrayData {
     let res = app
         .get(&format!(
             "{}?format=npy",
