@@ -243,21 +243,12 @@ pub async fn list_collections(
     State(state): State<AppState>,
     ApiQuery(query): ApiQuery<CollectionListQuery>,
 ) -> Result<Json<CollectionList>, ApiError> {
-    let limit = query.limit.unwrap_or(50);
-    if !(1..=1000).contains(&limit) {
-        return Err(ApiError::invalid_field(
-            "limit",
-            format!("{limit} must be between 1 and 1000"),
-        ));
-    }
-    if let Some(c) = &query.cursor {
-        if !valid_id(c, "col_") {
-            return Err(ApiError::invalid_field(
-                "cursor",
-                "not a cursor returned by this service (a collection id)",
-            ));
-        }
-    }
+    let limit = super::check_page(
+        query.limit,
+        query.cursor.as_deref(),
+        |c| valid_id(c, "col_"),
+        "a collection id",
+    )?;
     let mut collections = state
         .collections
         .list(query.cursor.as_deref(), limit + 1)

@@ -194,21 +194,12 @@ pub async fn list(
     State(state): State<AppState>,
     ApiQuery(query): ApiQuery<ListQuery>,
 ) -> Result<Json<JobList>, ApiError> {
-    let limit = query.limit.unwrap_or(50);
-    if !(1..=1000).contains(&limit) {
-        return Err(ApiError::invalid_field(
-            "limit",
-            format!("{limit} must be between 1 and 1000"),
-        ));
-    }
-    if let Some(c) = &query.cursor {
-        if !crate::jobs::valid_id(c) {
-            return Err(ApiError::invalid_field(
-                "cursor",
-                "not a cursor returned by this service (a job id)",
-            ));
-        }
-    }
+    let limit = super::check_page(
+        query.limit,
+        query.cursor.as_deref(),
+        crate::jobs::valid_id,
+        "a job id",
+    )?;
     let rows = state
         .jobs
         .list(query.state, query.cursor.as_deref(), limit + 1)

@@ -37,3 +37,29 @@ pub mod segment;
 pub mod shading;
 pub mod shape;
 pub mod tensor;
+
+/// Checks the paging parameters of a listing (`GET /v1/jobs`,
+/// `GET /v1/collections`): `limit` in 1..=1000 (default 50), and a `cursor`
+/// that this service returned (`valid` accepts it; `what` names what a
+/// cursor is, for the message). The limit to use.
+pub(crate) fn check_page(
+    limit: Option<i64>,
+    cursor: Option<&str>,
+    valid: impl Fn(&str) -> bool,
+    what: &str,
+) -> Result<i64, crate::problem::ApiError> {
+    let limit = limit.unwrap_or(50);
+    if !(1..=1000).contains(&limit) {
+        return Err(crate::problem::ApiError::invalid_field(
+            "limit",
+            format!("{limit} must be between 1 and 1000"),
+        ));
+    }
+    if cursor.is_some_and(|c| !valid(c)) {
+        return Err(crate::problem::ApiError::invalid_field(
+            "cursor",
+            format!("not a cursor returned by this service ({what})"),
+        ));
+    }
+    Ok(limit)
+}
