@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::spec::mesh::{get_mesh, MeshInput};
-use super::spec::shape::{check_size, matrix_output, shape_error};
+use super::spec::shape::{check_connected, check_size, matrix_output, shape_error};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputArray, OutputMesh};
 use crate::io::ArrayData;
 use crate::numerics::mesh::{MeshMethod, TriMesh};
@@ -84,16 +84,12 @@ impl Operation for MeshCorrespondRequest {
         let b = get_mesh(inputs, "b", &self.b)?;
         for (field, m) in [("a", &a), ("b", &b)] {
             check_size(m.mesh.num_vertices(), Some(self.landmarks), field)?;
-            if m.topology.components > 1 {
-                return Err(OpError::invalid(
-                    field,
-                    format!(
-                        "the mesh has {} connected components (its report counts {} isolated vertices): \
-                         a correspondence needs one; split the mesh and match component to component",
-                        m.topology.components, m.report.isolated_vertices
-                    ),
-                ));
-            }
+            check_connected(
+                m,
+                field,
+                "a correspondence",
+                "split the mesh and match component to component",
+            )?;
         }
         let (area_a, area_b) = (area(&a.mesh), area(&b.mesh));
         if !(area_a > 0.0 && area_b > 0.0) {

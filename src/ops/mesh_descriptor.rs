@@ -8,8 +8,8 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::spec::mesh::{get_mesh, heat_solver, HeatSpec, MeshMethodSpec};
-use super::spec::shape::shape_error;
+use super::spec::mesh::{get_mesh, HeatSpec, MeshMethodSpec};
+use super::spec::shape::{check_connected, heat_for, shape_error};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::MeshMethod;
 use crate::numerics::shape::descriptor::{descriptor, Descriptor, DescriptorOptions};
@@ -193,22 +193,14 @@ impl Operation for MeshDescriptorRequest {
     ) -> Result<OpOutput, OpError> {
         self.validate(limits)?;
         let input = get_mesh(inputs, "mesh", &self.mesh)?;
-        if input.topology.components > 1 {
-            return Err(OpError::invalid(
-                "mesh",
-                format!(
-                    "the mesh has {} connected components (its report counts {} isolated vertices): \
-                     a descriptor needs one; split the mesh and describe each component",
-                    input.topology.components, input.report.isolated_vertices
-                ),
-            ));
-        }
+        check_connected(
+            &input,
+            "mesh",
+            "a descriptor",
+            "split the mesh and describe each component",
+        )?;
         let method: MeshMethod = self.method.into();
-        let heat = if method == MeshMethod::Heat {
-            Some(heat_solver(inputs, &self.mesh, &input, &self.heat, control)?.0)
-        } else {
-            None
-        };
+        let heat = heat_for(inputs, method, &self.mesh, &input, &self.heat, control)?;
         let started = Instant::now();
         let d = descriptor(
             &input.mesh,

@@ -9,8 +9,8 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::spec::mesh::{get_mesh, heat_solver, HeatSpec, MeshInput, MeshMethodSpec};
-use super::spec::shape::{check_size, matrix_output, shape_error};
+use super::spec::mesh::{get_mesh, HeatSpec, MeshInput, MeshMethodSpec};
+use super::spec::shape::{check_connected, check_size, heat_for, matrix_output, shape_error};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation, OutputMesh};
 use crate::numerics::mesh::MeshMethod;
 use crate::numerics::shape::canonical::{canonical_form, CanonicalOptions};
@@ -124,22 +124,14 @@ impl Operation for MeshEmbedRequest {
         self.validate(limits)?;
         let input = get_mesh(inputs, "mesh", &self.mesh)?;
         check_size(input.mesh.num_vertices(), self.landmarks, "mesh")?;
-        if input.topology.components > 1 {
-            return Err(OpError::invalid(
-                "mesh",
-                format!(
-                    "the mesh has {} connected components (its report counts {} isolated vertices): \
-                     an embedding needs one; split the mesh and embed each component",
-                    input.topology.components, input.report.isolated_vertices
-                ),
-            ));
-        }
+        check_connected(
+            &input,
+            "mesh",
+            "an embedding",
+            "split the mesh and embed each component",
+        )?;
         let method: MeshMethod = self.method.into();
-        let heat = if method == MeshMethod::Heat {
-            Some(heat_solver(inputs, &self.mesh, &input, &self.heat, control)?.0)
-        } else {
-            None
-        };
+        let heat = heat_for(inputs, method, &self.mesh, &input, &self.heat, control)?;
         let started = Instant::now();
         let form = canonical_form(
             &input.mesh,

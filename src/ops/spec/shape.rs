@@ -7,11 +7,16 @@ use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use std::sync::Arc;
+
 use super::errors::mesh_solve_error;
+use super::mesh::{heat_solver, HeatSpec, MeshInput};
 use crate::io::ArrayData;
+use crate::numerics::mesh::{HeatSolver, MeshMethod};
 use crate::numerics::shape::matrix::Symmetry;
 use crate::numerics::shape::ShapeError;
-use crate::ops::{OpError, OutputArray};
+use crate::numerics::Control;
+use crate::ops::{Inputs, OpError, OutputArray};
 
 /// Most points (vertices) an all-pairs matrix or embedding takes: `n²`
 /// doubles, 200 MB at the limit. Above it, landmark rows are required.
@@ -93,4 +98,42 @@ pub(crate) fn matrix_output(name: &str, a: Array2<f64>) -> OutputArray {
         array: ArrayData::F64(a.into_dyn()),
         spacing: None,
     }
+}
+
+/// Refuses a mesh of several components for a shape operation, whose
+/// distances between components would be infinite: `field` names the mesh,
+/// `result` what needs one component ("an embedding"), `way_out` what to do
+/// instead ("split the mesh and embed each component").
+pub(crate) fn check_connected(
+    input: &MeshInput,
+    field: &str,
+    result: &str,
+    way_out: &str,
+) -> Result<(), OpError> {
+    if input.topology.components > 1 {
+        return Err(OpError::invalid(
+            field,
+            format!(
+                "the mesh has {} connected components (its report counts {} isolated vertices): \
+                 {result} needs one; {way_out}",
+                input.topology.components, input.report.isolated_vertices
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The mesh's (cached) heat solver when `method` is the heat method.
+pub(crate) fn heat_for(
+    inputs: &dyn Inputs,
+    method: MeshMethod,
+    mesh_id: &str,
+    input: &MeshInput,
+    heat: &HeatSpec,
+    control: &Control<'_>,
+) -> Result<Option<Arc<HeatSolver>>, OpError> {
+    if method != MeshMethod::Heat {
+        return Ok(None);
+    }
+    Ok(Some(heat_solver(inputs, mesh_id, input, heat, control)?.0))
 }
