@@ -173,52 +173,95 @@ pub fn cost_gradient(
     control: &Control<'_>,
 ) -> Result<ArrayD<f64>, EikonalError> {
     let march = Replay::new(problem, options, output, control)?;
-    let n = problem.grid.len();
-    // `[λ_x, ∂J/∂W_x]` side by side: the sweep visits the cells in front
-    // order, scattered in memory, and one cache line then serves both.
-    let mut acc = vec![[0.0f64; 2]; n];
-    for (i, w) in probe_weights(&problem.grid, &march.u, weights)? {
-        acc[i][0] += w;
-    }
-
-    let order = backward_order(&march.u, output);
-    let grid = &problem.grid;
-    for (done, &x) in order.iter().enumerate() {
-        if done % CANCEL_EVERY == 0 && control.is_cancelled() {
-            return Err(EikonalError::Cancelled);
-        }
-        if done % PROGRESS_EVERY == 0 && done > 0 {
-            control.report(done as f64 / order.len() as f64);
-        }
-        let lam = acc[x][0];
-        if lam == 0.0 {
-            continue;
-        }
-        if let Some(seed) = march.seed(x) {
-            // A point source's seed is `W(q) |x − p|_h`; a cell source's
-            // value does not depend on `W`.
-            if let Some((q, r)) = seed {
-                acc[q][1] += lam * r;
-            }
-            continue;
-        }
-        let Some(row) = march.row(x)? else {
-            continue;
-        };
-        acc[x][1] += lam * row.dw;
-        if let Some((j, d)) = row.dw_neighbour {
-            acc[j][1] += lam * d;
-        }
-        for &(j, d) in row.du() {
-            acc[j][0] += lam * d;
-        }
-    }
+    let probes = probe_weights(&problem.grid, &march.u, weights)?;
+    let grad = front_order_sweep(&march, output, &probes, control)?;
     control.report(1.0);
-    let grad = acc.iter().map(|a| a[1]).collect();
-    ArrayD::from_shape_vec(IxDyn(grid.shape()), grad).map_err(|e| EikonalError::Option {
+    ArrayD::from_shape_vec(IxDyn(problem.grid.shape()), grad).map_err(|e| EikonalError::Option {
         field: "output",
         reason: e.to_string(),
     })
+}
+
+/// The backward sweep over the cells in front order ([`backward_order`]),
+/// each row rebuilt where it is needed ([`adjoint_step`]): no memory
+/// beyond `λ`. The cells of a front lie scattered in memory, so each step
+/// would wait on cache misses; chunks of cells are read ahead
+/// ([`Replay::warm`]). Storing every row first, in index order, and
+/// sweeping them in rank space was measured slower (0.20 s against 0.15 s
+/// at order 1 on 1024²): rebuilding the rows, not the misses, dominates.
+fn front_order_sweep(
+    march: &Replay<'_>,
+    output: &EikonalOutput,
+    probes: &[(usize, f64)],
+    control: &Control<'_>,
+) -> Result<Vec<f64>, EikonalError> {
+    // `[λ_x, ∂J/∂W_x]` side by side: one cache line serves both.
+    let mut acc = vec![[0.0f64; 2]; march.u.len()];
+    for &(i, w) in probes {
+        acc[i][0] += w;
+    }
+    let order = backward_order(&march.u, output);
+    for (c, chunk) in order.chunks(WARM_CHUNK).enumerate() {
+        poll(control, c * WARM_CHUNK, order.len())?;
+        // First read what the chunk's steps will read, in a loop of
+        // independent loads that the processor overlaps; the steps then
+        // find it in the cache instead of waiting for each miss in turn
+        // (about 10 % of this sweep on 1024²).
+        std::hint::black_box(chunk.iter().fold(0.0, |s, &x| s + march.warm(x, &acc)));
+        for &x in chunk {
+            adjoint_step(march, x, &mut acc)?;
+        }
+    }
+    Ok(acc.iter().map(|a| a[1]).collect())
+}
+
+/// The cancel poll and the progress report of the sweep at its `done`-th
+/// cell of `total`.
+fn poll(control: &Control<'_>, done: usize, total: usize) -> Result<(), EikonalError> {
+    if done.is_multiple_of(CANCEL_EVERY) && control.is_cancelled() {
+        return Err(EikonalError::Cancelled);
+    }
+    if done.is_multiple_of(PROGRESS_EVERY) && done > 0 {
+        control.report(done as f64 / total as f64);
+    }
+    Ok(())
+}
+
+/// Cells of the backward sweep whose memory is read ahead at once
+/// ([`Replay::warm`]): enough loads in flight to hide the misses, few
+/// enough lines (about a dozen per cell) to stay in the first-level cache.
+/// It divides [`CANCEL_EVERY`] and [`PROGRESS_EVERY`], so that their polls
+/// fall on the starts of chunks.
+const WARM_CHUNK: usize = 32;
+const _: () =
+    assert!(CANCEL_EVERY.is_multiple_of(WARM_CHUNK) && PROGRESS_EVERY.is_multiple_of(WARM_CHUNK));
+
+/// One cell `x` of the backward sweep: its `λ` goes to `∂J/∂W` and to
+/// the `λ` of the cells its update read (see the module documentation).
+fn adjoint_step(march: &Replay<'_>, x: usize, acc: &mut [[f64; 2]]) -> Result<(), EikonalError> {
+    let lam = acc[x][0];
+    if lam == 0.0 {
+        return Ok(());
+    }
+    if let Some(seed) = march.seed(x) {
+        // A point source's seed is `W(q) |x − p|_h`; a cell source's
+        // value does not depend on `W`.
+        if let Some((q, r)) = seed {
+            acc[q][1] += lam * r;
+        }
+        return Ok(());
+    }
+    let Some(row) = march.row(x)? else {
+        return Ok(());
+    };
+    acc[x][1] += lam * row.dw;
+    if let Some((j, d)) = row.dw_neighbour {
+        acc[j][1] += lam * d;
+    }
+    for &(j, d) in row.du() {
+        acc[j][0] += lam * d;
+    }
+    Ok(())
 }
 
 /// The gradient of `U` at one probe with respect to the cost of every cell:
@@ -433,6 +476,31 @@ impl<'a> Replay<'a> {
             seed_of,
             seeds,
         })
+    }
+
+    /// Reads what the update of cell `x` and its adjoint step read (the
+    /// cost and `λ` of `x`, `U` and `λ` of its axis neighbours, their
+    /// freezing ranks at order 2 and the second neighbours' `U`), to bring
+    /// it into the cache ahead of the step; the sum means nothing.
+    fn warm(&self, x: usize, acc: &[[f64; 2]]) -> f64 {
+        let mut s = self.problem.cost.at(x) + acc[x][0];
+        let ranks = self.ranks.as_deref().filter(|_| self.second);
+        for &k in self.st.axes() {
+            let step = self.st.strides[k];
+            for j in [x.wrapping_sub(step), x.wrapping_add(step)] {
+                s += self.u.get(j).copied().unwrap_or(0.0);
+                s += acc.get(j).map_or(0.0, |a| a[0]);
+                if let Some(r) = ranks {
+                    s += r.get(j).copied().unwrap_or(0) as f64;
+                }
+            }
+            if self.second {
+                for j in [x.wrapping_sub(2 * step), x.wrapping_add(2 * step)] {
+                    s += self.u.get(j).copied().unwrap_or(0.0);
+                }
+            }
+        }
+        s
     }
 
     /// `Some(seed)` if cell `x` is a seed (see [`Replay::seeds`]).
