@@ -218,3 +218,72 @@ async fn bad_path_requests_are_4xx_naming_the_field() {
     .await;
     assert_eq!(v["field"], "cost.dataset");
 }
+
+/// The values of a result array, downloaded as NPY.
+async fn values(app: &crate::common::TestApp, reference: &Value) -> Vec<f64> {
+    let url = format!(
+        "{}?format=npy",
+        reference["data_url"].as_str().expect("data_url")
+    );
+    let bytes = app.get(&url).await.bytes().await.expect("bytes");
+    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
+        .expect("decode")
+        .array
+    {
+        ArrayData::F64(a) => a.iter().copied().collect(),
+        other => panic!("{:?}", other.dtype()),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_distance_on_a_cost_the_paths_designed_equals_a_fresh_one() {
+    // grid.distance takes the designed cost from the paths' cache when it is
+    // there (the playground warms it before the first click): the map must be
+    // the one a server that never saw the paths computes, to the bit.
+    let image = ArrayD::from_shape_fn(ndarray::IxDyn(&[30, 40]), |ix| {
+        ((ix[0] * 7 + ix[1] * 3) % 17) as f64
+            + if (14..=16).contains(&ix[0]) {
+                40.0
+            } else {
+                0.0
+            }
+    });
+    let cost = |id: &str| json!({"dataset": id, "design": {"kind": "intensity", "value": 45, "power": 2, "epsilon": 0.05, "sigma": 1}});
+    let distance = |id: &str| json!({"cost": cost(id), "spacing": [1.0, 0.5], "sources": [{"point": [3.0, 30.5]}], "order": 2});
+    let fresh_app = spawn(|_| {}).await;
+    let fresh_id = fresh_app.upload(&ArrayData::F64(image.clone())).await;
+    let res = post(&fresh_app, "/v1/grid/distance", &distance(&fresh_id)).await;
+    assert_eq!(res.status(), 200);
+    let fresh: Value = res.json().await.expect("json");
+    let fresh = values(&fresh_app, &fresh["distance"]).await;
+
+    let app = spawn(|_| {}).await;
+    let id = app.upload(&ArrayData::F64(image)).await;
+    let warm = json!({"cost": cost(&id), "spacing": [1.0, 0.5], "order": 2,
+        "sources": [{"point": [15.0, 20.0]}], "ends": [[15.0, 20.0]], "early_stop": true});
+    let v: Value = post(&app, "/v1/grid/paths", &warm)
+        .await
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(v["stats"]["cost_cached"], false, "{v}");
+    let res = post(&app, "/v1/grid/distance", &distance(&id)).await;
+    assert_eq!(res.status(), 200);
+    let from_cache: Value = res.json().await.expect("json");
+    let from_cache = values(&app, &from_cache["distance"]).await;
+    assert_eq!(fresh.len(), from_cache.len());
+    assert!(
+        fresh.iter().zip(&from_cache).all(|(a, b)| a == b),
+        "the maps differ"
+    );
+    // And the map it kept serves the paths from that source.
+    let path = json!({"cost": cost(&id), "spacing": [1.0, 0.5], "order": 2,
+        "sources": [{"point": [3.0, 30.5]}], "ends": [[25.0, 2.0]], "early_stop": false});
+    let v: Value = post(&app, "/v1/grid/paths", &path)
+        .await
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(v["stats"]["cost_cached"], true, "{v}");
+    assert_eq!(v["stats"]["maps"][0]["cached"], true, "{v}");
+}

@@ -6,6 +6,7 @@
 //! Coordinates are in array index order (axis 0 first) and in index units;
 //! physical lengths are index offsets times the per-axis `spacing`.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -14,7 +15,7 @@ use ndarray::{ArrayD, ArrayViewD, IxDyn};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::cost::{resolve_cost, CostSpec, ResolvedCost};
+use super::cost::{resolve_cost, CostSpec};
 use super::defaults::{default_order, default_true};
 use super::errors::eikonal_error;
 use super::map_cache::{cost_key, map_key, CachedCost, CachedMap, DistanceCache};
@@ -27,8 +28,9 @@ use crate::numerics::eikonal::{
     level_set_distance, Connectivity, EikonalOptions, EikonalProblem, InterfaceFit,
     LevelSetOptions, Method, Order,
 };
+use crate::numerics::metric::{CostValues, Interpretation};
 use crate::numerics::paths::SourceSet;
-use crate::numerics::{self, Control, StopReason};
+use crate::numerics::{self, Control, IsotropicCost, StopReason};
 use crate::ops::spec::grid::fetch;
 use crate::ops::{Inputs, OpError, OpLimits};
 
@@ -272,17 +274,48 @@ pub fn execute_sharing(
         (None, Some(metric)) => return execute_tensor(req, metric, inputs, limits, control),
         (None, None) => return Err(OpError::invalid("cost", "missing")),
     };
-    let resolved = resolve_cost(
-        cost,
-        req.spacing.as_deref(),
-        req.obstacles.as_deref(),
-        inputs,
-        limits,
-        control,
-    )?;
-    let cost = resolved.isotropic()?;
-    let spacing = resolved.spacing.clone();
-    let grid = resolved.grid.clone();
+    // A cost designed already for this front end (by the paths, or by an
+    // earlier map of another source) is taken from the cache: a new source
+    // on the same metric solves at once, without designing `W` again (for
+    // 1024² with smoothing, a third of the request).
+    let cache = inputs.distance_cache().filter(|_| share);
+    let cached = cache.and_then(|c| {
+        c.cost(&cost_key(
+            Some(cost),
+            None,
+            req.spacing.as_deref(),
+            req.obstacles.as_deref(),
+        ))
+    });
+    let resolved;
+    let (cost, spacing, grid) = match &cached {
+        Some(c) => (
+            IsotropicCost::new(
+                &c.grid,
+                CostValues::F64(Cow::Borrowed(&c.w)),
+                Interpretation::Cost,
+                None,
+            )
+            .map_err(|e| OpError::invalid("cost", e.to_string()))?,
+            c.spacing.clone(),
+            c.grid.clone(),
+        ),
+        None => {
+            resolved = resolve_cost(
+                cost,
+                req.spacing.as_deref(),
+                req.obstacles.as_deref(),
+                inputs,
+                limits,
+                control,
+            )?;
+            (
+                resolved.isotropic()?,
+                resolved.spacing.clone(),
+                resolved.grid.clone(),
+            )
+        }
+    };
     let started;
     let out = match req.sources.iter().position(|s| s.level_set.is_some()) {
         Some(i) => {
@@ -308,8 +341,8 @@ pub fn execute_sharing(
             };
             started = Instant::now();
             let out = numerics::solve(&problem, &req.options(), control).map_err(eikonal_error)?;
-            if let Some(cache) = inputs.distance_cache().filter(|_| share) {
-                share_map(cache, req, &resolved, &problem, &out)?;
+            if let Some(cache) = cache {
+                share_map(cache, req, &spacing, &problem, &out)?;
             }
             out
         }
@@ -338,7 +371,7 @@ pub fn execute_sharing(
 fn share_map(
     cache: &DistanceCache,
     req: &GridDistanceRequest,
-    resolved: &ResolvedCost,
+    spacing: &[f64],
     problem: &EikonalProblem<'_>,
     out: &numerics::EikonalOutput,
 ) -> Result<(), OpError> {
@@ -359,8 +392,10 @@ fn share_map(
         None => {
             let c = Arc::new(CachedCost {
                 grid: problem.grid.clone(),
-                spacing: resolved.spacing.clone(),
-                w: resolved.cost_values()?,
+                spacing: spacing.to_vec(),
+                w: (0..problem.grid.len())
+                    .map(|i| problem.cost.at(i))
+                    .collect(),
             });
             cache.put_cost(key.clone(), c.clone());
             c
