@@ -226,7 +226,22 @@ def main():
             return seen.size; })()""")
         assert "format=png" in page.js("document.getElementById('overlay').src")
         assert spread > 20, f"the distance picture has only {spread} colours"
-        page.check_clean(f"click a source: distance picture with {spread} colours, colour bar shown")
+        # The picture drawn at once from the NPY values (the fastmap canvas)
+        # is the server's PNG, colours and iso-lines, to within rounding.
+        mismatch = page.js("""(function(){
+            const img = document.getElementById('overlay'), fm = document.getElementById('fastmap');
+            const w = img.naturalWidth, h = img.naturalHeight;
+            if (fm.width !== w || fm.height !== h) return -1;
+            const c = document.createElement('canvas'); c.width = w; c.height = h;
+            const x = c.getContext('2d'); x.drawImage(img, 0, 0);
+            const a = x.getImageData(0, 0, w, h).data, b = fm.getContext('2d').getImageData(0, 0, w, h).data;
+            let bad = 0;
+            for (let k = 0; k < a.length; k += 4)
+                if (Math.abs(a[k] - b[k]) + Math.abs(a[k+1] - b[k+1]) + Math.abs(a[k+2] - b[k+2]) > 9) bad++;
+            return bad / (w * h); })()""")
+        assert 0 <= mismatch < 0.005, f"the picture drawn from the values differs from the PNG at {mismatch:.2%} of the pixels"
+        page.check_clean(f"click a source: distance picture with {spread} colours, colour bar shown; "
+                         f"the picture drawn from the values differs from the PNG at {mismatch:.3%} of the pixels")
 
         # ---- pointer moves: a path to each position, through the door ------------------
         targets = [(200, 200), (180, 220), (120, 240), (230, 150), (60, 200), (20, 180), (240, 245)]

@@ -119,6 +119,7 @@ window.GX = window.GX || {};
     metricTimer = setTimeout(() => {
       if (!S.image) return;
       resetPath();
+      warmCost();
       if ($("show-metric").checked) showMetric().catch(GX.fail);
       if (S.tool === "segment" && S.seeds.length) runSegment();
     }, 250);
@@ -165,6 +166,27 @@ window.GX = window.GX || {};
     GX.status(`metric ${kind}: ${r.stats ? JSON.stringify(r.stats) : ""}`);
   }
 
+  /**
+   * Designs the metric on the server before the first click: a path from
+   * the centre to itself with `early_stop` (its solve stops at once) keeps
+   * the designed cost in the server's cache, and grid.distance takes a
+   * cached cost, so the first source's map is solved without designing W
+   * again (a third of the request on a smoothed 1024² image). Debounced;
+   * tensor metrics are not cached, a constant one needs no design.
+   */
+  let warmTimer = null;
+  function warmCost() {
+    clearTimeout(warmTimer);
+    warmTimer = setTimeout(() => {
+      if (!S.image) return;
+      const sec = metricSection();
+      if (!sec.cost || sec.cost.constant !== undefined) return;
+      const c = [Math.floor(S.image.shape[0] / 2), Math.floor(S.image.shape[1] / 2)];
+      GX.api("POST", "/v1/grid/paths", { json: { ...sec, ...scheme(), sources: [{ point: c }], ends: [c], early_stop: true }, key: "warm-metric" })
+        .catch(GX.fail);
+    }, 100);
+  }
+
   // ---- image loading ------------------------------------------------------
 
   function setImg(img, src) {
@@ -207,6 +229,7 @@ window.GX = window.GX || {};
     clearAll();
     $("image-info").textContent = `${name}: ${h}×${w}, dataset ${meta.id}`;
     GX.status("uploaded " + name + ": click on the image");
+    warmCost();
     if ($("show-metric").checked) await showMetric();
   }
 
@@ -221,6 +244,7 @@ window.GX = window.GX || {};
       $("metric-kind").value = kind;
       buildParams();
       if (kind === "intensity") { $("mp-value").value = 220; $("mo-value").textContent = "220"; }
+      warmCost();
       if ($("show-metric").checked) await showMetric();
     }
     if (name === "shape") setTool("mask");
@@ -255,6 +279,7 @@ window.GX = window.GX || {};
     $("svg").innerHTML = "";
     $("overlay").removeAttribute("src");
     $("overlay").style.display = "none";
+    $("fastmap").style.display = "none";
     hideColourbar();
   }
 
@@ -266,7 +291,17 @@ window.GX = window.GX || {};
     ctx.clearRect(0, 0, $("layer").width, $("layer").height);
   }
 
-  /** A new source: the distance map (shown), and the map cache warmed for paths. */
+  /**
+   * A new source: the distance map (shown), and the map cache warmed for paths.
+   *
+   * The map is shown from its values: the NPY download (which the read-out
+   * and the colour bar need anyway) is drawn at once with the colours and
+   * iso-lines of the server's picture (`fieldPixels`), then the server's
+   * own `?format=png` replaces it when it has arrived. Waiting for the PNG
+   * (encoded on the server, about 50 ms for 1024²) before showing anything
+   * made the first map 450-510 ms; labels are not asked for (`outputs`),
+   * which spares the server a 4 MB array.
+   */
   async function setSource(p) {
     S.source = p;
     S.warmed = null;
@@ -275,26 +310,87 @@ window.GX = window.GX || {};
     const sec = metricSection();
     let warmed;
     S.warmPromise = new Promise((ok) => { warmed = ok; });
-    const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }] } });
+    const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }], outputs: { labels: false } } });
     if (S.source !== p) return; // a newer click won
     S.distanceId = r.distance.id;
-    const ov = $("overlay");
-    ov.style.display = "";
-    await setImg(ov, r.distance.data_url + "?format=png&colorbar=false");
+    await loadField(r.distance.data_url, "distance");
+    if (S.source !== p) return;
+    drawField(S.field);
     const ms = performance.now() - t0;
     GX.stats.firstMapMs.push(ms);
     GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
-    // Then make sure /v1/grid/paths holds the map (after the picture). The
-    // server keeps the map grid.distance just solved for the paths of the same
-    // cost, sources and scheme, so this answer is a descent on that map
-    // (stats.maps[0].cached); had it been evicted, this request solves and
-    // keeps the whole map (early_stop: false). Pointer moves wait for it
-    // rather than each solving the same map.
+    // The server's picture, and the map kept for /v1/grid/paths, side by
+    // side. The server keeps the map grid.distance just solved for the
+    // paths of the same cost, sources and scheme, so the warming answer is
+    // a descent on that map (stats.maps[0].cached); had it been evicted,
+    // this request solves and keeps the whole map (early_stop: false).
+    // Pointer moves wait for it rather than each solving the same map.
+    const ov = $("overlay");
+    const picture = setImg(ov, r.distance.data_url + "?format=png&colorbar=false").then(() => {
+      if (S.source !== p) return;
+      ov.style.display = "";
+      $("fastmap").style.display = "none";
+    });
     await GX.api("POST", "/v1/grid/paths", { json: { ...sec, ...scheme(), sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
       .catch(GX.fail);
     warmed();
     if (S.source === p) S.warmed = p;
-    loadField(r.distance.data_url, "distance").catch(GX.fail);
+    await picture;
+  }
+
+  /**
+   * RGBA pixels of a scalar field as the server draws `?format=png` with
+   * `colorbar=false` (`io::render`): viridis over the finite range, walls
+   * (NaN) black, unreached (+inf) grey, and 10 iso-lines (spacing
+   * (max − min) / 11) drawn on the cells whose band differs from their
+   * right or lower neighbour's, in the colour mixed 60 % towards black
+   * (light colours) or white (dark ones).
+   */
+  function fieldPixels(f) {
+    const n = f.h * f.w, v = f.data, span = f.max - f.min;
+    const lut = new Uint8ClampedArray(3 * 1024);
+    for (let k = 0; k < 1024; k++) {
+      const c = GX.viridis(k / 1023);
+      lut[3 * k] = Math.round(c[0]); lut[3 * k + 1] = Math.round(c[1]); lut[3 * k + 2] = Math.round(c[2]);
+    }
+    const px = new Uint8ClampedArray(4 * n);
+    const band = new Float64Array(n);
+    const step = span / 11, top = Math.max(Math.ceil(span / step) - 1, 0);
+    for (let i = 0; i < n; i++) {
+      const x = v[i];
+      let r = 128, g = 128, b = 128;
+      if (Number.isNaN(x)) { r = g = b = 0; } else if (x !== Infinity) {
+        const k = span > 0 ? Math.round(Math.min(1, Math.max(0, (x - f.min) / span)) * 1023) : 0;
+        r = lut[3 * k]; g = lut[3 * k + 1]; b = lut[3 * k + 2];
+      }
+      px[4 * i] = r; px[4 * i + 1] = g; px[4 * i + 2] = b; px[4 * i + 3] = 255;
+      band[i] = Number.isFinite(x) && step > 0 ? Math.min(Math.floor(Math.max((x - f.min) / step, 0)), top) : NaN;
+    }
+    if (step > 0) {
+      for (let i = 0; i < n; i++) {
+        const a = band[i];
+        if (Number.isNaN(a)) continue;
+        const c = i % f.w;
+        const right = c + 1 < f.w ? band[i + 1] : NaN, down = i + f.w < n ? band[i + f.w] : NaN;
+        if ((!Number.isNaN(right) && right !== a) || (!Number.isNaN(down) && down !== a)) {
+          const luma = 0.2126 * px[4 * i] + 0.7152 * px[4 * i + 1] + 0.0722 * px[4 * i + 2];
+          const t = luma >= 100 ? 0 : 255;
+          for (let q = 0; q < 3; q++) px[4 * i + q] = Math.round(px[4 * i + q] * 0.4 + t * 0.6);
+        }
+      }
+    }
+    return px;
+  }
+
+  /** Shows a field at once on the `fastmap` canvas (see `setSource`). */
+  function drawField(f) {
+    const c = $("fastmap");
+    c.width = f.w; c.height = f.h;
+    c.style.aspectRatio = `${f.w} / ${f.h}`;
+    c.style.opacity = $("overlay-opacity").value;
+    c.getContext("2d").putImageData(new ImageData(fieldPixels(f), f.w, f.h), 0, 0);
+    c.style.display = "";
+    $("overlay").style.display = "none";
   }
 
   /** Fetches a scalar field as NPY for the colour bar and the read-out. */
@@ -417,7 +513,7 @@ window.GX = window.GX || {};
         if (radius > 0) body.max_distance = radius;
         const r = await GX.api("POST", "/v1/grid/segment", { json: body });
         const ov = $("overlay");
-        ov.style.display = "";
+        ov.style.display = ""; $("fastmap").style.display = "none";
         await setImg(ov, r.labels.data_url + "?format=png");
         const svg = $("svg");
         svg.innerHTML = "";
@@ -481,7 +577,7 @@ window.GX = window.GX || {};
     $("svg").innerHTML = "";
     if (op === "edt") {
       const r = await GX.api("POST", "/v1/grid/edt", { json: { mask: id, mode: "signed" } });
-      ov.style.display = "";
+      ov.style.display = ""; $("fastmap").style.display = "none";
       await setImg(ov, r.distance.data_url + "?format=png&colorbar=false");
       drawMask(new Uint8Array(0), [0, 0, 0, 0]);
       await loadField(r.distance.data_url, "signed distance");
@@ -551,7 +647,9 @@ window.GX = window.GX || {};
     $("factoring").addEventListener("change", resetPath);
     $("clear-seeds").addEventListener("click", () => { clearAll(); });
     $("seg-radius").addEventListener("input", () => { $("seg-radius-out").textContent = $("seg-radius").value === "0" ? "off" : $("seg-radius").value; runSegment(); });
-    $("overlay-opacity").addEventListener("input", () => { $("overlay").style.opacity = $("overlay-opacity").value; });
+    $("overlay-opacity").addEventListener("input", () => {
+      for (const id of ["overlay", "fastmap"]) $(id).style.opacity = $("overlay-opacity").value;
+    });
     $("mask-thr").addEventListener("input", () => { $("mask-thr-out").textContent = $("mask-thr").value; previewMask(); });
     $("mask-invert").addEventListener("change", previewMask);
     $("mask-radius").addEventListener("input", () => { $("mask-radius-out").textContent = $("mask-radius").value; });
