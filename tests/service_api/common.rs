@@ -45,6 +45,28 @@ impl TestApp {
     }
 }
 
+impl TestApp {
+    /// Downloads a result array (`{"data_url": ...}`) as NPY and decodes it.
+    pub async fn download(&self, reference: &serde_json::Value) -> ArrayData {
+        let url = format!(
+            "{}?format=npy",
+            reference["data_url"].as_str().expect("data_url")
+        );
+        let bytes = self.get(&url).await.bytes().await.expect("bytes");
+        io::decode(&bytes, None, &io::Limits::default())
+            .expect("decode")
+            .array
+    }
+}
+
+/// The values of an f64 result array (see [`TestApp::download`]).
+pub async fn f64_values(app: &TestApp, reference: &serde_json::Value) -> Vec<f64> {
+    match app.download(reference).await {
+        ArrayData::F64(a) => a.iter().copied().collect(),
+        other => panic!("{:?}", other.dtype()),
+    }
+}
+
 /// Starts a server with the defaults changed by `tune`.
 pub async fn spawn(tune: impl FnOnce(&mut ServeArgs)) -> TestApp {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -6,7 +6,7 @@ use geodex::io::ArrayData;
 use ndarray::ArrayD;
 use serde_json::json;
 
-use crate::common::{problem, spawn, wavy_cost, TestApp};
+use crate::common::{f64_values, problem, spawn, wavy_cost, TestApp};
 
 async fn post(app: &TestApp, body: &serde_json::Value) -> reqwest::Response {
     app.client
@@ -23,21 +23,6 @@ async fn ok(app: &TestApp, body: &serde_json::Value) -> serde_json::Value {
     let text = res.text().await.expect("body");
     assert_eq!(status, 200, "{body}: {text}");
     serde_json::from_str(&text).expect("json")
-}
-
-async fn f64s(app: &TestApp, reference: &serde_json::Value) -> Vec<f64> {
-    let url = format!(
-        "{}?format=npy",
-        reference["data_url"].as_str().expect("data_url")
-    );
-    let bytes = app.get(&url).await.bytes().await.expect("bytes");
-    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
-        .expect("decode")
-        .array
-    {
-        ArrayData::F64(a) => a.iter().copied().collect(),
-        other => panic!("{:?}", other.dtype()),
-    }
 }
 
 #[tokio::test]
@@ -58,12 +43,12 @@ async fn straight_line_gradient_sums_to_the_length_on_its_row() {
     assert!((j - 40.0).abs() < 1e-9, "{v}");
     assert_eq!(v["targets"][0]["distance"], v["objective"]["value"]);
     assert_eq!(v["gradient"]["shape"], json!([41, 51]));
-    let g = f64s(&app, &v["gradient"]).await;
+    let g = f64_values(&app, &v["gradient"]).await;
     let row: f64 = g[20 * 51..21 * 51].iter().sum();
     let all: f64 = g.iter().sum();
     assert!((row - 40.0).abs() < 1e-9, "row sum {row}");
     assert!((all - 40.0).abs() < 1e-9, "total {all}");
-    let u = f64s(&app, &v["distance"]).await;
+    let u = f64_values(&app, &v["distance"]).await;
     assert_eq!(u.len(), 41 * 51);
     assert!((u[20 * 51 + 45] - 40.0).abs() < 1e-9);
 }
@@ -103,7 +88,7 @@ async fn gradient_matches_finite_differences_of_its_own_objective() {
             "order": order
         });
         let v = ok(&app, &body).await;
-        let g = f64s(&app, &v["gradient"]).await;
+        let g = f64_values(&app, &v["gradient"]).await;
         let directional: f64 = g.iter().zip(delta.iter()).map(|(g, d)| g * d).sum();
         let eps = 1e-5;
         let plus = objective(&app, &body, &(&cost + &(&delta * eps))).await;
@@ -144,7 +129,7 @@ async fn speed_gradient_obeys_euler_identity_of_degree_minus_one() {
         .await;
         assert_eq!(v["with_respect_to"], "speed");
         assert!(v.get("distance").is_none_or(|d| d.is_null()), "{v}");
-        let g = f64s(&app, &v["gradient"]).await;
+        let g = f64_values(&app, &v["gradient"]).await;
         let euler: f64 = g.iter().zip(speed.iter()).map(|(g, f)| g * f).sum();
         let j = v["objective"]["value"].as_f64().expect("value");
         assert!(
@@ -300,7 +285,7 @@ async fn metric_gradient_matches_finite_differences_and_euler_identity() {
         let v = ok(&app, &body(&id, order)).await;
         assert_eq!(v["with_respect_to"], "metric");
         assert_eq!(v["gradient"]["shape"], json!([n0, n1, 3]));
-        let g = f64s(&app, &v["gradient"]).await;
+        let g = f64_values(&app, &v["gradient"]).await;
         let j = v["objective"]["value"].as_f64().expect("value");
         // U is homogeneous of degree 1/2 in M.
         let euler: f64 = g.iter().zip(base.iter()).map(|(g, m)| g * m).sum();

@@ -6,7 +6,7 @@ use geodex::io::ArrayData;
 use ndarray::ArrayD;
 use serde_json::{json, Value};
 
-use crate::common::{problem, spawn};
+use crate::common::{f64_values, problem, spawn};
 
 async fn post(app: &crate::common::TestApp, path: &str, body: &Value) -> reqwest::Response {
     app.client
@@ -219,22 +219,6 @@ async fn bad_path_requests_are_4xx_naming_the_field() {
     assert_eq!(v["field"], "cost.dataset");
 }
 
-/// The values of a result array, downloaded as NPY.
-async fn values(app: &crate::common::TestApp, reference: &Value) -> Vec<f64> {
-    let url = format!(
-        "{}?format=npy",
-        reference["data_url"].as_str().expect("data_url")
-    );
-    let bytes = app.get(&url).await.bytes().await.expect("bytes");
-    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
-        .expect("decode")
-        .array
-    {
-        ArrayData::F64(a) => a.iter().copied().collect(),
-        other => panic!("{:?}", other.dtype()),
-    }
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_distance_on_a_cost_the_paths_designed_equals_a_fresh_one() {
     // grid.distance takes the designed cost from the paths' cache when it is
@@ -255,7 +239,7 @@ async fn a_distance_on_a_cost_the_paths_designed_equals_a_fresh_one() {
     let res = post(&fresh_app, "/v1/grid/distance", &distance(&fresh_id)).await;
     assert_eq!(res.status(), 200);
     let fresh: Value = res.json().await.expect("json");
-    let fresh = values(&fresh_app, &fresh["distance"]).await;
+    let fresh = f64_values(&fresh_app, &fresh["distance"]).await;
 
     let app = spawn(|_| {}).await;
     let id = app.upload(&ArrayData::F64(image)).await;
@@ -270,7 +254,7 @@ async fn a_distance_on_a_cost_the_paths_designed_equals_a_fresh_one() {
     let res = post(&app, "/v1/grid/distance", &distance(&id)).await;
     assert_eq!(res.status(), 200);
     let from_cache: Value = res.json().await.expect("json");
-    let from_cache = values(&app, &from_cache["distance"]).await;
+    let from_cache = f64_values(&app, &from_cache["distance"]).await;
     assert_eq!(fresh.len(), from_cache.len());
     assert!(
         fresh.iter().zip(&from_cache).all(|(a, b)| a == b),

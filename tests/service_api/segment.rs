@@ -285,15 +285,7 @@ async fn skeleton_offset_and_plan_over_http() {
 }
 
 async fn npy_i32(app: &TestApp, reference: &serde_json::Value) -> Vec<i32> {
-    let url = format!(
-        "{}?format=npy",
-        reference["data_url"].as_str().expect("data_url")
-    );
-    let bytes = app.get(&url).await.bytes().await.expect("bytes");
-    match geodex::io::decode(&bytes, None, &geodex::io::Limits::default())
-        .expect("decode")
-        .array
-    {
+    match app.download(reference).await {
         ArrayData::I32(a) => a.iter().copied().collect(),
         other => panic!("{:?}", other.dtype()),
     }

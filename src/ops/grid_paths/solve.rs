@@ -1,18 +1,16 @@
 //! The run of `grid.paths`: one distance map per leg (from the cache when it
 //! holds it), one descent per end point, the chain of the legs.
 
-use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
 use super::render::{geojson, svg};
 use super::*;
 use crate::numerics::anisotropic::descent::Riemannian;
-use crate::numerics::metric::{CostValues, Interpretation};
 use crate::numerics::paths::{
     CellCost, DescentOptions, DistanceMap, Isotropic, PathError, SourceSet,
 };
-use crate::numerics::{self, Control, EikonalProblem, IsotropicCost, Source, StopRules};
+use crate::numerics::{self, Control, EikonalProblem, Source, StopRules};
 use crate::ops::spec::cost::resolve_cost;
 use crate::ops::spec::errors::eikonal_error;
 use crate::ops::spec::map_cache::{CachedCost, CachedMap, DistanceCache};
@@ -366,13 +364,7 @@ fn solve_leg(
         ..StopRules::default()
     };
     let sources: Vec<Source> = leg.sources.iter().map(SourceSpec::to_source).collect();
-    let iso = IsotropicCost::new(
-        grid,
-        CostValues::F64(Cow::Borrowed(&cost.w)),
-        Interpretation::Cost,
-        None,
-    )
-    .map_err(|e| OpError::invalid("cost", e.to_string()))?;
+    let iso = cost.isotropic()?;
     let problem = EikonalProblem {
         grid: grid.clone(),
         cost: iso,

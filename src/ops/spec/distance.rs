@@ -6,7 +6,6 @@
 //! Coordinates are in array index order (axis 0 first) and in index units;
 //! physical lengths are index offsets times the per-axis `spacing`.
 
-use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -28,9 +27,8 @@ use crate::numerics::eikonal::{
     level_set_distance, Connectivity, EikonalOptions, EikonalProblem, InterfaceFit,
     LevelSetOptions, Method, Order,
 };
-use crate::numerics::metric::{CostValues, Interpretation};
 use crate::numerics::paths::SourceSet;
-use crate::numerics::{self, Control, IsotropicCost, StopReason};
+use crate::numerics::{self, Control, StopReason};
 use crate::ops::spec::grid::fetch;
 use crate::ops::{Inputs, OpError, OpLimits};
 
@@ -289,17 +287,7 @@ pub fn execute_sharing(
     });
     let resolved;
     let (cost, spacing, grid) = match &cached {
-        Some(c) => (
-            IsotropicCost::new(
-                &c.grid,
-                CostValues::F64(Cow::Borrowed(&c.w)),
-                Interpretation::Cost,
-                None,
-            )
-            .map_err(|e| OpError::invalid("cost", e.to_string()))?,
-            c.spacing.clone(),
-            c.grid.clone(),
-        ),
+        Some(c) => (c.isotropic()?, c.spacing.clone(), c.grid.clone()),
         None => {
             resolved = resolve_cost(
                 cost,

@@ -8,14 +8,17 @@
 //! keys are [`cost_key`] and [`map_key`]: the request's JSON sections, so
 //! that two operations asking for the same problem meet on the same entry.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use crate::numerics::metric::{CostValues, Interpretation};
 use crate::numerics::paths::SourceSet;
-use crate::numerics::Grid;
+use crate::numerics::{Grid, IsotropicCost};
 use crate::ops::spec::cost::CostSpec;
 use crate::ops::spec::scheme::{ConnectivitySpec, MethodSpec, SourceSpec};
 use crate::ops::spec::tensor::TensorSpec;
+use crate::ops::OpError;
 
 /// The key of a cost: its `cost`/`metric`, `spacing` and `obstacles` sections.
 pub fn cost_key(
@@ -49,6 +52,19 @@ pub struct CachedCost {
     pub spacing: Vec<f64>,
     /// `W` per cell, C order, `+inf` on walls.
     pub w: Vec<f64>,
+}
+
+impl CachedCost {
+    /// The cost as the solvers take it (`W` as stored, walls included).
+    pub fn isotropic(&self) -> Result<IsotropicCost<'_>, OpError> {
+        IsotropicCost::new(
+            &self.grid,
+            CostValues::F64(Cow::Borrowed(&self.w)),
+            Interpretation::Cost,
+            None,
+        )
+        .map_err(|e| OpError::invalid("cost", e.to_string()))
+    }
 }
 
 /// A distance map kept for later descents.
