@@ -310,31 +310,38 @@ window.GX = window.GX || {};
     const sec = metricSection();
     let warmed;
     S.warmPromise = new Promise((ok) => { warmed = ok; });
-    const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }], outputs: { labels: false } } });
-    if (S.source !== p) return; // a newer click won
-    S.distanceId = r.distance.id;
-    await loadField(r.distance.data_url, "distance");
-    if (S.source !== p) return;
-    drawField(S.field);
-    const ms = performance.now() - t0;
-    GX.stats.firstMapMs.push(ms);
-    GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
-    // The server's picture, and the map kept for /v1/grid/paths, side by
-    // side. The server keeps the map grid.distance just solved for the
-    // paths of the same cost, sources and scheme, so the warming answer is
-    // a descent on that map (stats.maps[0].cached); had it been evicted,
-    // this request solves and keeps the whole map (early_stop: false).
-    // Pointer moves wait for it rather than each solving the same map.
-    const ov = $("overlay");
-    const picture = setImg(ov, r.distance.data_url + "?format=png&colorbar=false").then(() => {
+    // Pointer moves wait on `warmPromise`: it is settled on every way out
+    // (a newer click, a refused request), so that they never wait forever.
+    let picture = null;
+    try {
+      const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }], outputs: { labels: false } } });
+      if (S.source !== p) return; // a newer click won
+      S.distanceId = r.distance.id;
+      await loadField(r.distance.data_url, "distance");
       if (S.source !== p) return;
-      ov.style.display = "";
-      $("fastmap").style.display = "none";
-    });
-    await GX.api("POST", "/v1/grid/paths", { json: { ...sec, ...scheme(), sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
-      .catch(GX.fail);
-    warmed();
-    if (S.source === p) S.warmed = p;
+      drawField(S.field);
+      const ms = performance.now() - t0;
+      GX.stats.firstMapMs.push(ms);
+      GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
+      // The server's picture, and the map kept for /v1/grid/paths, side by
+      // side. The server keeps the map grid.distance just solved for the
+      // paths of the same cost, sources and scheme, so the warming answer
+      // is a descent on that map (stats.maps[0].cached); had it been
+      // evicted, this request solves and keeps the whole map
+      // (early_stop: false). Pointer moves wait for it rather than each
+      // solving the same map.
+      const ov = $("overlay");
+      picture = setImg(ov, r.distance.data_url + "?format=png&colorbar=false").then(() => {
+        if (S.source !== p) return;
+        ov.style.display = "";
+        $("fastmap").style.display = "none";
+      });
+      await GX.api("POST", "/v1/grid/paths", { json: { ...sec, ...scheme(), sources: [{ point: p }], ends: [p], early_stop: false }, key: "warm" })
+        .catch(GX.fail);
+      if (S.source === p) S.warmed = p;
+    } finally {
+      warmed();
+    }
     await picture;
   }
 
