@@ -22,6 +22,7 @@ use std::time::Duration;
 use anyhow::Context;
 use tokio::net::TcpListener;
 
+use crate::auth::Keys;
 use crate::config::ServeArgs;
 use crate::datasets::{DatasetStore, StoreConfig};
 use crate::http::{self, AppState};
@@ -82,6 +83,7 @@ impl Application {
         )
         .await
         .context("opening the job queue")?;
+        let auth = Arc::new(open_auth(&settings, &jobs).await?);
         let state = AppState {
             store,
             runner: crate::runner::Runner::new(Arc::clone(&pool), op_limits),
@@ -97,6 +99,7 @@ impl Application {
 
             collections: Arc::new(crate::collections::Collections::new(jobs.db().clone())),
             jobs: Arc::new(jobs),
+            auth,
         };
         let router = http::router(state.clone(), &settings);
         let listener = TcpListener::bind(settings.addr)
@@ -175,6 +178,41 @@ impl Application {
             .await;
         result
     }
+}
+
+/// Decides whether requests need a key: yes with `--auth` or when any key
+/// exists. Without, the service serves only on a loopback address (as
+/// Redis's protected mode), and says in the log that auth is off.
+async fn open_auth(settings: &ServeArgs, jobs: &Jobs) -> anyhow::Result<http::auth::Auth> {
+    let keys = Arc::new(Keys::new(jobs.db().clone(), settings.key_defaults()));
+    let any_key = keys.any_active().await.context("reading the API keys")?;
+    let on = settings.auth || any_key;
+    let addr = settings.addr;
+    if !on && !addr.ip().is_loopback() {
+        anyhow::bail!(
+            "refusing to serve on {addr} without authentication: anyone who can reach it could \
+             read and delete every dataset and job. Create a key with `geodex keys create \
+             --tenant NAME` (same --data-dir / --queue) and start with --auth, or listen on a \
+             loopback address such as 127.0.0.1"
+        );
+    }
+    if !on {
+        tracing::warn!(%addr, "auth is off: no API key exists and the address is a loopback \
+            one, so every process of this machine can use the service; `geodex keys create \
+            --tenant NAME` and --auth turn it on");
+    } else if !any_key {
+        tracing::warn!(
+            "auth is on but no API key exists yet: every request but the probes \
+            is answered 401; create one with `geodex keys create --tenant NAME`"
+        );
+    } else {
+        tracing::info!("auth is on: requests need an API key");
+    }
+    Ok(http::auth::Auth {
+        keys: on.then_some(keys),
+        buckets: Default::default(),
+        allowed_origins: settings.cors_origins.clone(),
+    })
 }
 
 fn io_limits(settings: &ServeArgs) -> Limits {

@@ -60,8 +60,28 @@ pub struct ServeArgs {
     #[arg(long, env = "GEODEX_PATH_CACHE_BYTES", default_value_t = 512 << 20)]
     pub path_cache_bytes: usize,
     /// Allowed CORS origins, comma separated; `*` allows any. Default: none.
+    /// These are also the only other origins whose pages may send requests
+    /// that change something (uploads, solves, deletions).
     #[arg(long, env = "GEODEX_CORS_ORIGINS", value_delimiter = ',')]
     pub cors_origins: Vec<String>,
+    /// Require an API key (`Authorization: Bearer <key>`) on every route but
+    /// the probes, the OpenAPI document, the docs and the playground page.
+    /// Auth is also on when any key exists (`geodex keys create`). Without
+    /// either, the service serves only on a loopback address.
+    #[arg(long, env = "GEODEX_AUTH")]
+    pub auth: bool,
+    /// Storage quota of one tenant in bytes, for keys that set none
+    /// (0: only `--storage-quota-bytes` applies).
+    #[arg(long, env = "GEODEX_TENANT_QUOTA_BYTES", default_value_t = 0)]
+    pub tenant_quota_bytes: u64,
+    /// Requests per second of one key, for keys that set none (0: no limit);
+    /// beyond it the answer is 429 with Retry-After.
+    #[arg(long, env = "GEODEX_RATE_LIMIT_PER_SEC", default_value_t = 0.0)]
+    pub rate_limit_per_sec: f64,
+    /// Requests one key may send at once above its rate (the token bucket's
+    /// size; default: one second's worth, at least 1).
+    #[arg(long, env = "GEODEX_RATE_LIMIT_BURST", default_value_t = 0.0)]
+    pub rate_limit_burst: f64,
     /// Seconds to let in-flight requests finish after SIGTERM or Ctrl-C.
     #[arg(long, env = "GEODEX_SHUTDOWN_GRACE_SECS", default_value_t = 30)]
     pub shutdown_grace_secs: u64,
@@ -71,11 +91,22 @@ pub struct ServeArgs {
     /// The job queue: `sqlite` (the file `<data-dir>/jobs.sqlite`),
     /// `sqlite:///path/jobs.db`, or `postgres://user@host:port/db` to share
     /// one queue between replicas.
-    #[arg(long, env = "GEODEX_QUEUE", default_value = "sqlite")]
+    /// Its value is never printed (`--help`, errors and logs hide the password).
+    #[arg(
+        long,
+        env = "GEODEX_QUEUE",
+        default_value = "sqlite",
+        hide_env_values = true
+    )]
     pub queue: String,
     /// Where job results are stored: `file` (`<data-dir>/results`),
     /// `file:///shared/dir`, or `s3://bucket/prefix` (built with `--features s3`).
-    #[arg(long, env = "GEODEX_STORE", default_value = "file")]
+    #[arg(
+        long,
+        env = "GEODEX_STORE",
+        default_value = "file",
+        hide_env_values = true
+    )]
     pub store: String,
     /// Jobs this process runs at once; 0 makes it an API-only replica.
     /// Default: the solver pool's threads.
@@ -127,6 +158,10 @@ impl Default for ServeArgs {
             cache_bytes: 1 << 30,
             path_cache_bytes: 512 << 20,
             cors_origins: Vec::new(),
+            auth: false,
+            tenant_quota_bytes: 0,
+            rate_limit_per_sec: 0.0,
+            rate_limit_burst: 0.0,
             shutdown_grace_secs: 30,
             log_json: false,
             queue: "sqlite".into(),
@@ -142,7 +177,67 @@ impl Default for ServeArgs {
     }
 }
 
+/// `url` with the password of its user info (`scheme://user:password@host`)
+/// replaced by `***`, for messages and logs.
+///
+/// # Examples
+///
+/// ```
+/// use geodex::config::redact_url;
+/// assert_eq!(redact_url("postgres://app:s3cret@db:5432/geo"), "postgres://app:***@db:5432/geo");
+/// assert_eq!(redact_url("sqlite"), "sqlite");
+/// ```
+pub fn redact_url(url: &str) -> String {
+    let Some((scheme, rest)) = url.split_once("://") else {
+        return url.to_string();
+    };
+    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    let (authority, tail) = rest.split_at(authority_end);
+    match authority.rsplit_once('@') {
+        Some((userinfo, host)) => {
+            let user = userinfo.split_once(':').map_or(userinfo, |(u, _)| u);
+            let hidden = if userinfo.contains(':') { ":***" } else { "" };
+            format!("{scheme}://{user}{hidden}@{host}{tail}")
+        }
+        None => url.to_string(),
+    }
+}
+
+/// `text` with `url` replaced by [`redact_url`] of it, and its password, if
+/// it has one, replaced by `***` wherever else it appears.
+pub fn scrub_secret(text: &str, url: &str) -> String {
+    let mut out = text.replace(url, &redact_url(url));
+    let password = url
+        .split_once("://")
+        .and_then(|(_, rest)| rest.split(['/', '?', '#']).next())
+        .and_then(|authority| authority.rsplit_once('@'))
+        .and_then(|(userinfo, _)| userinfo.split_once(':'))
+        .map(|(_, p)| p)
+        .filter(|p| p.len() >= 3);
+    if let Some(p) = password {
+        out = out.replace(p, "***");
+    }
+    out
+}
+
 impl ServeArgs {
+    /// The defaults of keys that set no limits of their own.
+    pub fn key_defaults(&self) -> crate::auth::KeyDefaults {
+        crate::auth::KeyDefaults {
+            quota_bytes: self.tenant_quota_bytes,
+            rate_per_sec: if self.rate_limit_per_sec.is_finite() {
+                self.rate_limit_per_sec.max(0.0)
+            } else {
+                0.0
+            },
+            burst: if self.rate_limit_burst.is_finite() {
+                self.rate_limit_burst.max(0.0)
+            } else {
+                0.0
+            },
+        }
+    }
+
     /// Threads of the solver pool, resolved (at least 1).
     pub fn threads(&self) -> usize {
         self.pool_threads

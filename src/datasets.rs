@@ -131,6 +131,26 @@ pub struct DatasetMeta {
     /// what reading repaired.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<MeshReport>,
+    /// The tenant that owns it (the API key's; absent when auth is off).
+    /// Another tenant is answered 404 for it.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub tenant: String,
+}
+
+/// Who owns what a request stores, and how much that tenant may store.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Owner {
+    /// The tenant (`""` when auth is off).
+    pub tenant: String,
+    /// The tenant's own storage quota in bytes, beside the service's.
+    pub quota_bytes: Option<u64>,
+}
+
+impl Owner {
+    /// The owner of everything when auth is off.
+    pub fn anonymous() -> Self {
+        Self::default()
+    }
 }
 
 /// Why a store operation failed.
@@ -151,17 +171,39 @@ pub enum StoreError {
         /// The quota.
         quota: u64,
     },
+    /// Writing would exceed the tenant's own quota.
+    #[error(
+        "storing {needed} bytes would exceed the storage quota of tenant '{tenant}' \
+         ({used} of {quota} bytes used)"
+    )]
+    TenantQuota {
+        /// The tenant.
+        tenant: String,
+        /// Bytes the write needs.
+        needed: u64,
+        /// Bytes the tenant uses.
+        used: u64,
+        /// Its quota.
+        quota: u64,
+    },
     /// The stored file could not be decoded or the array encoded.
     #[error(transparent)]
     Codec(#[from] IoError),
     /// A file-system error.
     #[error("storage IO error: {0}")]
     Io(String),
+    /// The disk of the data directory is full (whatever the quota says).
+    #[error("the disk of the data directory is full")]
+    DiskFull,
 }
 
 impl From<std::io::Error> for StoreError {
     fn from(e: std::io::Error) -> Self {
-        StoreError::Io(e.to_string())
+        if e.kind() == std::io::ErrorKind::StorageFull {
+            StoreError::DiskFull
+        } else {
+            StoreError::Io(e.to_string())
+        }
     }
 }
 
@@ -185,6 +227,32 @@ pub struct StoreConfig {
 struct Index {
     entries: HashMap<String, DatasetMeta>,
     used: u64,
+    /// Bytes in use per tenant (reserved writes included).
+    by_tenant: HashMap<String, u64>,
+    /// Each tenant's own quota, as its key said at its latest request (a job
+    /// worker, which has no key in hand, applies it to the job's results).
+    quotas: HashMap<String, u64>,
+}
+
+impl Index {
+    /// Counts `bytes` more (or fewer) against the store and `tenant`.
+    fn charge(&mut self, tenant: &str, bytes: u64) {
+        self.used = self.used.saturating_add(bytes);
+        *self.by_tenant.entry(tenant.to_string()).or_default() += bytes;
+    }
+
+    fn refund(&mut self, tenant: &str, bytes: u64) {
+        self.used = self.used.saturating_sub(bytes);
+        if let Some(u) = self.by_tenant.get_mut(tenant) {
+            *u = u.saturating_sub(bytes);
+        }
+    }
+
+    /// Adds a dataset whose bytes were not reserved (found on disk).
+    fn add_found(&mut self, meta: DatasetMeta) {
+        self.charge(&meta.tenant, meta.byte_size);
+        self.entries.insert(meta.id.clone(), meta);
+    }
 }
 
 /// The dataset store; share it as `Arc<DatasetStore>`.
@@ -236,10 +304,7 @@ impl DatasetStore {
                 .ok()
                 .and_then(|b| serde_json::from_slice::<DatasetMeta>(&b).ok());
             match meta {
-                Some(m) if m.id == name => {
-                    index.used += m.byte_size;
-                    index.entries.insert(name, m);
-                }
+                Some(m) if m.id == name => index.add_found(m),
                 _ => {
                     let _ = std::fs::remove_dir_all(entry.path());
                 }
@@ -261,6 +326,15 @@ impl DatasetStore {
     /// Bytes in use and the quota.
     pub fn usage(&self) -> (u64, u64) {
         (lock(&self.index).used, self.config.quota_bytes)
+    }
+
+    /// Bytes `tenant` uses.
+    pub fn tenant_usage(&self, tenant: &str) -> u64 {
+        lock(&self.index)
+            .by_tenant
+            .get(tenant)
+            .copied()
+            .unwrap_or(0)
     }
 
     /// True if the store directory exists and is a directory.
@@ -285,6 +359,18 @@ impl DatasetStore {
         self.discover(id)
     }
 
+    /// The metadata of a live dataset of `tenant`: another tenant's dataset
+    /// is [`StoreError::NotFound`], as if it did not exist.
+    pub fn meta_of(&self, id: &str, tenant: &str) -> Result<DatasetMeta, StoreError> {
+        self.meta(id).and_then(|m| {
+            if m.tenant == tenant {
+                Ok(m)
+            } else {
+                Err(StoreError::NotFound(id.into()))
+            }
+        })
+    }
+
     /// Adds a dataset written by another process sharing the directory.
     fn discover(&self, id: &str) -> Result<DatasetMeta, StoreError> {
         if !valid_id(id) {
@@ -297,8 +383,7 @@ impl DatasetStore {
             .ok_or_else(|| StoreError::NotFound(id.into()))?;
         let mut index = lock(&self.index);
         if !index.entries.contains_key(id) {
-            index.used += meta.byte_size;
-            index.entries.insert(id.to_string(), meta.clone());
+            index.add_found(meta.clone());
         }
         Ok(meta)
     }
@@ -309,26 +394,19 @@ impl DatasetStore {
         array: &ArrayData,
         spacing: Option<Vec<f64>>,
         source_format: SourceFormat,
+        owner: &Owner,
     ) -> Result<DatasetMeta, StoreError> {
         let npy = io::encode_npy(array)?;
         let size = npy.len() as u64;
-        self.reserve(size)?;
+        self.reserve(size, owner)?;
         let id = new_id();
-        let result = self.write(&id, &npy, array, spacing, source_format);
-        let mut index = lock(&self.index);
-        match result {
-            Ok(meta) => {
-                index.entries.insert(id, meta.clone());
-                Ok(meta)
-            }
-            Err(e) => {
-                index.used = index.used.saturating_sub(size);
-                Err(e)
-            }
-        }
+        let result = self.write(&id, &npy, array, spacing, source_format, owner);
+        self.settle(id, size, owner, result)
     }
 
-    fn reserve(&self, size: u64) -> Result<(), StoreError> {
+    /// Counts `size` bytes against the service's quota and the owner's,
+    /// or says which is full.
+    pub(crate) fn reserve(&self, size: u64, owner: &Owner) -> Result<(), StoreError> {
         let mut index = lock(&self.index);
         if index.used.saturating_add(size) > self.config.quota_bytes {
             return Err(StoreError::Quota {
@@ -337,8 +415,57 @@ impl DatasetStore {
                 quota: self.config.quota_bytes,
             });
         }
-        index.used += size;
+        if let Some(q) = owner.quota_bytes {
+            index.quotas.insert(owner.tenant.clone(), q);
+        }
+        if let Some(quota) = owner
+            .quota_bytes
+            .or_else(|| index.quotas.get(&owner.tenant).copied())
+        {
+            let used = index.by_tenant.get(&owner.tenant).copied().unwrap_or(0);
+            if used.saturating_add(size) > quota {
+                return Err(StoreError::TenantQuota {
+                    tenant: owner.tenant.clone(),
+                    needed: size,
+                    used,
+                    quota,
+                });
+            }
+        }
+        index.charge(&owner.tenant, size);
         Ok(())
+    }
+
+    /// Gives back `size` reserved bytes (a write that failed or a file removed).
+    pub(crate) fn release(&self, size: u64, tenant: &str) {
+        lock(&self.index).refund(tenant, size);
+    }
+
+    /// Counts bytes stored elsewhere against the quotas without checking
+    /// them (the job results found at start-up).
+    pub(crate) fn charge_found(&self, size: u64, tenant: &str) {
+        lock(&self.index).charge(tenant, size);
+    }
+
+    /// Records a written dataset, or gives its reservation back.
+    fn settle(
+        &self,
+        id: String,
+        size: u64,
+        owner: &Owner,
+        result: Result<DatasetMeta, StoreError>,
+    ) -> Result<DatasetMeta, StoreError> {
+        let mut index = lock(&self.index);
+        match result {
+            Ok(meta) => {
+                index.entries.insert(id, meta.clone());
+                Ok(meta)
+            }
+            Err(e) => {
+                index.refund(&owner.tenant, size);
+                Err(e)
+            }
+        }
     }
 
     fn write(
@@ -348,6 +475,7 @@ impl DatasetStore {
         array: &ArrayData,
         spacing: Option<Vec<f64>>,
         source_format: SourceFormat,
+        owner: &Owner,
     ) -> Result<DatasetMeta, StoreError> {
         let created_at = Utc::now();
         let ttl = chrono::Duration::from_std(self.config.ttl).unwrap_or(chrono::Duration::MAX);
@@ -368,6 +496,7 @@ impl DatasetStore {
                 .unwrap_or(DateTime::<Utc>::MAX_UTC),
             source_format,
             mesh: None,
+            tenant: owner.tenant.clone(),
         };
         let tmp = self.root.join(format!(".tmp-{id}"));
         let write = || -> Result<(), StoreError> {
@@ -440,7 +569,7 @@ impl DatasetStore {
                 .entries
                 .remove(id)
                 .ok_or_else(|| StoreError::NotFound(id.into()))?;
-            index.used = index.used.saturating_sub(meta.byte_size);
+            index.refund(&meta.tenant, meta.byte_size);
             meta
         };
         self.memory.forget(id);
@@ -474,10 +603,11 @@ impl DatasetStore {
         array: Arc<ArrayData>,
         spacing: Option<Vec<f64>>,
         source_format: SourceFormat,
+        owner: Owner,
     ) -> Result<DatasetMeta, StoreError> {
         let store = Arc::clone(self);
         blocking(move || {
-            let meta = store.create_blocking(&array, spacing, source_format)?;
+            let meta = store.create_blocking(&array, spacing, source_format, &owner)?;
             // A result is usually fetched right away (a picture, an NPY):
             // keep the decoded array, which costs no copy.
             store.cache_insert(

@@ -8,6 +8,7 @@
 //!   the HTTP endpoints, the job queue and the command line.
 //! * [`pool`]: the shared solver pool (rayon), admission control, deadlines.
 //! * [`datasets`]: the dataset store (files under the data directory).
+//! * [`auth`]: API keys and tenants (keys in the jobs' database).
 //! * [`jobs`]: durable background jobs (SQLite or PostgreSQL queue, results
 //!   in an object store).
 //! * [`http`]: the axum router, problem+json errors, the OpenAPI contract.
@@ -41,6 +42,8 @@ pub mod numerics;
 
 #[cfg(feature = "server")]
 pub mod app;
+#[cfg(feature = "server")]
+pub mod auth;
 #[cfg(feature = "server")]
 pub mod cli;
 #[cfg(feature = "server")]

@@ -67,6 +67,13 @@ pub enum Kind {
     TimeLimit,
     /// 507: the storage quota is used up.
     StorageFull,
+    /// 401: no API key, or one that is unknown or revoked.
+    Unauthorized,
+    /// 403: the request is not allowed (a cross-site browser request, an
+    /// admin route without an admin key).
+    Forbidden,
+    /// 429: the key's rate limit is reached.
+    RateLimited,
 }
 
 impl Kind {
@@ -89,6 +96,9 @@ impl Kind {
         Kind::DeadlineExceeded,
         Kind::TimeLimit,
         Kind::StorageFull,
+        Kind::Unauthorized,
+        Kind::Forbidden,
+        Kind::RateLimited,
     ];
 
     /// `(slug, title, status)` of this kind.
@@ -127,6 +137,9 @@ impl Kind {
             ),
             Kind::TimeLimit => ("time-limit", "The job ran past its time limit", 504),
             Kind::StorageFull => ("storage-full", "The storage quota is used up", 507),
+            Kind::Unauthorized => ("unauthorized", "An API key is needed", 401),
+            Kind::Forbidden => ("forbidden", "The request is not allowed", 403),
+            Kind::RateLimited => ("rate-limited", "Too many requests", 429),
         }
     }
 
@@ -401,9 +414,20 @@ impl From<StoreError> for ApiError {
                 Some("id"),
                 format!("dataset '{id}' does not exist (or has expired)"),
             ),
-            StoreError::Quota { .. } => ApiError::insufficient_storage(e.to_string()),
+            StoreError::Quota { .. } => ApiError::insufficient_storage(format!(
+                "{e}; delete datasets you no longer need (DELETE /v1/datasets/{{id}}) or wait \
+                 for them to expire"
+            )),
+            StoreError::TenantQuota { .. } => ApiError::insufficient_storage(format!(
+                "{e}; delete datasets you no longer need (DELETE /v1/datasets/{{id}}), or ask \
+                 the operator for a larger quota on your key"
+            )),
             StoreError::Codec(io) => io_error(io, "body"),
             StoreError::Io(_) => ApiError::internal(e),
+            StoreError::DiskFull => ApiError::insufficient_storage(
+                "the disk of the data directory is full: nothing was stored; delete datasets \
+                 you no longer need, or ask the operator to free space",
+            ),
         }
     }
 }

@@ -35,11 +35,28 @@ pub trait LoadInputs: Inputs + Send + Sync + 'static {
         &mut self,
         ids: Vec<(String, String)>,
     ) -> impl Future<Output = Result<(), ApiError>> + Send;
+
+    /// Fails (404 naming the field) unless the caller may read every
+    /// `(field, dataset id)`: another tenant's dataset does not exist for it.
+    /// Called with every dataset the request names, before a cache may stand
+    /// in for one. Default: everything is readable (files of the command line).
+    fn check_access(
+        &self,
+        _ids: &[(String, String)],
+    ) -> impl Future<Output = Result<(), ApiError>> + Send {
+        async { Ok(()) }
+    }
 }
 
 impl LoadInputs for StoreInputs {
     async fn load(&mut self, ids: Vec<(String, String)>) -> Result<(), ApiError> {
         StoreInputs::load(self, ids).await.map_err(ApiError::from)
+    }
+
+    async fn check_access(&self, ids: &[(String, String)]) -> Result<(), ApiError> {
+        StoreInputs::check_access(self, ids)
+            .await
+            .map_err(ApiError::from)
     }
 }
 
@@ -154,6 +171,10 @@ impl Runner {
         options: RunOptions,
     ) -> Result<Ran, RunError> {
         op.validate(&self.limits).map_err(RunError::Invalid)?;
+        inputs
+            .check_access(&op.dataset_ids())
+            .await
+            .map_err(RunError::Inputs)?;
         let needed = op.datasets_to_load(&inputs);
         inputs.load(needed).await.map_err(RunError::Inputs)?;
         let limits = self.limits;

@@ -22,6 +22,7 @@ mod flags;
 pub use flags::CliError;
 pub mod gradient;
 pub mod inverse;
+pub mod keys;
 pub mod metric;
 mod output;
 pub mod path;
@@ -70,6 +71,8 @@ pub struct Cli {
 pub enum Command {
     /// Run the HTTP service (the default).
     Serve(ServeArgs),
+    /// Create, list or revoke API keys (in the service's job database).
+    Keys(keys::KeysArgs),
     /// Compute a distance map from NPY files (batch use).
     Distance(distance::DistanceArgs),
     /// The cost W designed from an image (edges, intensity, vesselness), to look at.
@@ -128,6 +131,7 @@ pub fn main() -> ExitCode {
     let cli = usage::parse_or_exit::<Cli>();
     let result = match cli.command {
         Some(Command::Serve(args)) => crate::app::serve(args),
+        Some(Command::Keys(args)) => keys::run(&args),
         Some(Command::Distance(args)) => distance::run(&args).map_err(Into::into),
         Some(Command::Metric(args)) => metric::run(&args).map_err(Into::into),
         Some(Command::Bench(args)) => bench::run(&args).map_err(Into::into),

@@ -24,6 +24,8 @@ pub struct CollectionRow {
     pub created_at: i64,
     /// Shapes in the collection.
     pub shapes: i64,
+    /// The tenant that made it (`''` when auth is off).
+    pub tenant: String,
 }
 
 /// One row of `geodex_collection_shapes`.
@@ -57,7 +59,8 @@ macro_rules! on_pool {
     };
 }
 
-const COLLECTION: &str = "SELECT c.id, c.name, c.landmarks, c.bins, c.method, c.created_at, \
+const COLLECTION: &str =
+    "SELECT c.id, c.name, c.landmarks, c.bins, c.method, c.created_at, c.tenant, \
 (SELECT COUNT(*) FROM geodex_collection_shapes s WHERE s.collection_id = c.id) AS shapes \
 FROM geodex_collections c";
 
@@ -75,6 +78,7 @@ macro_rules! collection_row {
             method: r.try_get("method")?,
             created_at: r.try_get("created_at")?,
             shapes: r.try_get("shapes")?,
+            tenant: r.try_get("tenant")?,
         }
     }};
 }
@@ -97,8 +101,8 @@ macro_rules! shape_row {
 
 /// Inserts a collection (no shapes yet).
 pub async fn insert_collection(db: &JobDb, row: &CollectionRow) -> Result<(), DbError> {
-    let q = "INSERT INTO geodex_collections (id, name, landmarks, bins, method, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6)";
+    let q = "INSERT INTO geodex_collections (id, name, landmarks, bins, method, created_at, \
+             tenant) VALUES ($1, $2, $3, $4, $5, $6, $7)";
     on_pool!(db, p => sqlx::query(q)
         .bind(&row.id)
         .bind(&row.name)
@@ -106,34 +110,40 @@ pub async fn insert_collection(db: &JobDb, row: &CollectionRow) -> Result<(), Db
         .bind(row.bins)
         .bind(&row.method)
         .bind(row.created_at)
+        .bind(&row.tenant)
         .execute(p)
         .await?
         .rows_affected());
     Ok(())
 }
 
-/// The collection with this id.
-pub async fn get_collection(db: &JobDb, id: &str) -> Result<Option<CollectionRow>, DbError> {
-    let q = sqlx::AssertSqlSafe(format!("{COLLECTION} WHERE c.id = $1"));
+/// The collection of `tenant` with this id.
+pub async fn get_collection(
+    db: &JobDb,
+    id: &str,
+    tenant: &str,
+) -> Result<Option<CollectionRow>, DbError> {
+    let q = sqlx::AssertSqlSafe(format!("{COLLECTION} WHERE c.id = $1 AND c.tenant = $2"));
     Ok(on_pool!(db, p => {
-        match sqlx::query(q).bind(id).fetch_optional(p).await? {
+        match sqlx::query(q).bind(id).bind(tenant).fetch_optional(p).await? {
             Some(r) => Some(collection_row!(&r)),
             None => None,
         }
     }))
 }
 
-/// Collections, newest first, with ids below `before`.
+/// Collections of `tenant`, newest first, with ids below `before`.
 pub async fn list_collections(
     db: &JobDb,
+    tenant: &str,
     before: Option<&str>,
     limit: i64,
 ) -> Result<Vec<CollectionRow>, DbError> {
     let q = sqlx::AssertSqlSafe(format!(
-        "{COLLECTION} WHERE ($1 IS NULL OR c.id < $1) ORDER BY c.id DESC LIMIT $2"
+        "{COLLECTION} WHERE c.tenant = $1 AND ($2 IS NULL OR c.id < $2) ORDER BY c.id DESC LIMIT $3"
     ));
     Ok(on_pool!(db, p => {
-        let rows = sqlx::query(q).bind(before).bind(limit).fetch_all(p).await?;
+        let rows = sqlx::query(q).bind(tenant).bind(before).bind(limit).fetch_all(p).await?;
         let mut out = Vec::with_capacity(rows.len());
         for r in &rows {
             out.push(collection_row!(r));
@@ -142,14 +152,21 @@ pub async fn list_collections(
     }))
 }
 
-/// Deletes a collection and its shapes; false if there was none.
-pub async fn delete_collection(db: &JobDb, id: &str) -> Result<bool, DbError> {
-    let shapes = "DELETE FROM geodex_collection_shapes WHERE collection_id = $1";
-    let collection = "DELETE FROM geodex_collections WHERE id = $1";
+/// Deletes a collection of `tenant` and its shapes; false if it has none
+/// with this id.
+pub async fn delete_collection(db: &JobDb, id: &str, tenant: &str) -> Result<bool, DbError> {
+    let shapes = "DELETE FROM geodex_collection_shapes WHERE collection_id = $1 AND EXISTS \
+                  (SELECT 1 FROM geodex_collections WHERE id = $1 AND tenant = $2)";
+    let collection = "DELETE FROM geodex_collections WHERE id = $1 AND tenant = $2";
     let done = on_pool!(db, p => {
         let mut tx = p.begin().await?;
-        sqlx::query(shapes).bind(id).execute(&mut *tx).await?;
-        let n = sqlx::query(collection).bind(id).execute(&mut *tx).await?.rows_affected();
+        sqlx::query(shapes).bind(id).bind(tenant).execute(&mut *tx).await?;
+        let n = sqlx::query(collection)
+            .bind(id)
+            .bind(tenant)
+            .execute(&mut *tx)
+            .await?
+            .rows_affected();
         tx.commit().await?;
         n
     });

@@ -197,6 +197,7 @@ impl Collections {
         &self,
         name: &str,
         spec: DescriptorSpec,
+        tenant: &str,
     ) -> Result<Collection, CollectionError> {
         let row = CollectionRow {
             id: format!("col_{}", uuid::Uuid::now_v7().simple()),
@@ -206,38 +207,42 @@ impl Collections {
             method: method_name(spec.method)?,
             created_at: now_ms(),
             shapes: 0,
+            tenant: tenant.to_string(),
         };
         db::insert_collection(&self.db, &row).await?;
         Collection::try_from(&row)
     }
 
-    /// The collection with this id.
-    pub async fn get(&self, id: &str) -> Result<Option<Collection>, CollectionError> {
-        match db::get_collection(&self.db, id).await? {
+    /// The collection of `tenant` with this id (another tenant's is `None`).
+    pub async fn get(&self, id: &str, tenant: &str) -> Result<Option<Collection>, CollectionError> {
+        match db::get_collection(&self.db, id, tenant).await? {
             Some(r) => Ok(Some(Collection::try_from(&r)?)),
             None => Ok(None),
         }
     }
 
-    /// Collections, newest first, with ids below `before`.
+    /// Collections of `tenant`, newest first, with ids below `before`.
     pub async fn list(
         &self,
+        tenant: &str,
         before: Option<&str>,
         limit: i64,
     ) -> Result<Vec<Collection>, CollectionError> {
-        db::list_collections(&self.db, before, limit)
+        db::list_collections(&self.db, tenant, before, limit)
             .await?
             .iter()
             .map(Collection::try_from)
             .collect()
     }
 
-    /// Deletes a collection and its shapes; false if there was none.
-    pub async fn delete(&self, id: &str) -> Result<bool, CollectionError> {
-        Ok(db::delete_collection(&self.db, id).await?)
+    /// Deletes a collection of `tenant` and its shapes; false if it has
+    /// none with this id.
+    pub async fn delete(&self, id: &str, tenant: &str) -> Result<bool, CollectionError> {
+        Ok(db::delete_collection(&self.db, id, tenant).await?)
     }
 
-    /// The shapes of a collection, oldest first.
+    /// The shapes of a collection, oldest first (the caller checked, with
+    /// [`Self::get`], that the collection is its tenant's).
     pub async fn shapes(&self, id: &str) -> Result<Vec<CollectionShape>, CollectionError> {
         Ok(db::shapes(&self.db, id)
             .await?

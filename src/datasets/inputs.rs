@@ -51,6 +51,8 @@ pub struct StoreInputs {
     pub meshes: HashMap<String, Arc<MeshInput>>,
     store: Arc<DatasetStore>,
     distance_cache: Option<Arc<DistanceCache>>,
+    /// Whose datasets these may be: another tenant's id is not found.
+    tenant: String,
 }
 
 impl StoreInputs {
@@ -61,6 +63,41 @@ impl StoreInputs {
             meshes: HashMap::new(),
             store,
             distance_cache: None,
+            tenant: String::new(),
+        }
+    }
+
+    /// The same inputs for a request of `tenant` (see [`Self::check_access`]).
+    pub fn for_tenant(mut self, tenant: &str) -> Self {
+        self.tenant = tenant.to_string();
+        self
+    }
+
+    /// Fails with [`InputError::NotFound`] for the first `(field, id)` that
+    /// is not a live dataset of this tenant (ids already present, such as a
+    /// request's own upload, pass). The runner calls it for every dataset a
+    /// request names, before any cache may stand in for one.
+    pub async fn check_access(&self, ids: &[(String, String)]) -> Result<(), InputError> {
+        let wanted: Vec<(String, String)> = ids
+            .iter()
+            .filter(|(_, id)| !self.arrays.contains_key(id) && !self.meshes.contains_key(id))
+            .cloned()
+            .collect();
+        if wanted.is_empty() {
+            return Ok(());
+        }
+        let store = Arc::clone(&self.store);
+        let tenant = self.tenant.clone();
+        let denied = super::blocking(move || {
+            Ok(wanted
+                .into_iter()
+                .find(|(_, id)| store.meta_of(id, &tenant).is_err()))
+        })
+        .await
+        .map_err(InputError::Store)?;
+        match denied {
+            Some((field, id)) => Err(InputError::NotFound { field, id }),
+            None => Ok(()),
         }
     }
 

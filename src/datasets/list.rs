@@ -28,13 +28,14 @@ impl DatasetStore {
     /// `None`), id descending. The store's index holds every dataset this
     /// process created, found at start-up, or was asked about; a dataset
     /// that another replica wrote since is listed once it was asked for.
-    pub fn list(&self, limit: usize, after: Option<&str>) -> Page {
+    /// Only `tenant`'s datasets are listed.
+    pub fn list(&self, tenant: &str, limit: usize, after: Option<&str>) -> Page {
         let now = Utc::now();
         let index = lock(&self.index);
         let mut live: Vec<&DatasetMeta> = index
             .entries
             .values()
-            .filter(|m| m.expires_at > now)
+            .filter(|m| m.expires_at > now && m.tenant == tenant)
             .filter(|m| after.is_none_or(|c| m.id.as_str() < c))
             .collect();
         live.sort_unstable_by(|a, b| b.id.cmp(&a.id));
@@ -74,7 +75,12 @@ mod tests {
         let mut ids = Vec::new();
         for _ in 0..7 {
             let meta = store
-                .create_blocking(&a, None, SourceFormat::Npy)
+                .create_blocking(
+                    &a,
+                    None,
+                    SourceFormat::Npy,
+                    &crate::datasets::Owner::anonymous(),
+                )
                 .expect("create");
             ids.push(meta.id);
         }
@@ -83,7 +89,7 @@ mod tests {
         let mut cursor: Option<String> = None;
         let mut pages = 0;
         loop {
-            let page = store.list(3, cursor.as_deref());
+            let page = store.list("", 3, cursor.as_deref());
             pages += 1;
             seen.extend(page.items.iter().map(|m| m.id.clone()));
             match page.next {

@@ -10,7 +10,9 @@ use std::sync::Arc;
 use chrono::{DateTime, Utc};
 
 use super::cache::{CacheKey, CacheValue};
-use super::{lock, new_id, DatasetKind, DatasetMeta, DatasetStore, SourceFormat, StoreError};
+use super::{
+    lock, new_id, DatasetKind, DatasetMeta, DatasetStore, Owner, SourceFormat, StoreError,
+};
 use crate::io::mesh::write::{write_ply, VertexProperty};
 use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits, MeshReport};
 use crate::io::DType;
@@ -39,10 +41,11 @@ impl DatasetStore {
         report: MeshReport,
         props: &[VertexProperty<'_>],
         source_format: SourceFormat,
+        owner: &Owner,
     ) -> Result<DatasetMeta, StoreError> {
         let ply = write_ply(mesh, props);
         let size = ply.len() as u64;
-        self.reserve(size)?;
+        self.reserve(size, owner)?;
         let id = new_id();
         let created_at = Utc::now();
         let ttl = chrono::Duration::from_std(self.config.ttl).unwrap_or(chrono::Duration::MAX);
@@ -59,6 +62,7 @@ impl DatasetStore {
                 .unwrap_or(DateTime::<Utc>::MAX_UTC),
             source_format,
             mesh: Some(report),
+            tenant: owner.tenant.clone(),
         };
         let tmp = self.root.join(format!(".tmp-{id}"));
         let write = || -> Result<(), StoreError> {
@@ -70,20 +74,12 @@ impl DatasetStore {
             std::fs::rename(&tmp, self.root.join(&id))?;
             Ok(())
         };
-        let result = write().inspect_err(|_| {
-            let _ = std::fs::remove_dir_all(&tmp);
-        });
-        let mut index = lock(&self.index);
-        match result {
-            Ok(()) => {
-                index.entries.insert(id, meta.clone());
-                Ok(meta)
-            }
-            Err(e) => {
-                index.used = index.used.saturating_sub(size);
-                Err(e)
-            }
-        }
+        let result = write()
+            .inspect_err(|_| {
+                let _ = std::fs::remove_dir_all(&tmp);
+            })
+            .map(|()| meta);
+        self.settle(id, size, owner, result)
     }
 
     /// The stored PLY bytes of a live mesh dataset (blocking).

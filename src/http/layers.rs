@@ -2,6 +2,7 @@
 //!
 //! Order, outermost first: request id (set), trace span, request id
 //! (propagate), CORS, request metrics, problem finalizer, gzip, panic catcher,
+//! authentication (browser origin, API key, rate limit: [`super::auth`]),
 //! declared length (413 before reading), body limit.
 
 use std::time::Instant;
@@ -113,7 +114,7 @@ async fn declared_length(req: Request, next: Next, limit: usize) -> Response {
 }
 
 /// Wraps the router in every layer.
-pub fn apply(app: Router, settings: &ServeArgs) -> Router {
+pub fn apply(app: Router, settings: &ServeArgs, auth: std::sync::Arc<super::auth::Auth>) -> Router {
     let x_request_id = HeaderName::from_static("x-request-id");
     let max_body = settings.max_body_bytes;
     let app = app
@@ -123,6 +124,10 @@ pub fn apply(app: Router, settings: &ServeArgs) -> Router {
         .layer(middleware::from_fn(move |req: Request, next: Next| {
             declared_length(req, next, max_body)
         }))
+        .layer(middleware::from_fn_with_state(
+            auth,
+            super::auth::authenticate,
+        ))
         .layer(CatchPanicLayer::custom(error::panic_response))
         .layer(compression())
         .layer(middleware::from_fn(error::finalize))

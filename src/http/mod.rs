@@ -5,6 +5,7 @@
 //! [`crate::pool`].
 //!
 //! * [`error`]: [`error::Problem`] (RFC 9457) and [`error::ApiError`].
+//! * [`auth`]: API keys, tenants, the browser-origin check, rate limits.
 //! * [`extract`]: extractors whose rejections are problems.
 //! * [`openapi`]: document metadata and reusable error responses.
 //! * [`operation`]: the generic synchronous path of an operation (load inputs, run on the pool, store outputs).
@@ -12,6 +13,7 @@
 //! * [`server`]: the accept loop (header and body timeouts, the connection cap).
 //! * [`routes`]: one module per group of endpoints.
 
+pub mod auth;
 pub mod error;
 pub mod extract;
 pub mod layers;
@@ -62,6 +64,9 @@ pub struct AppState {
 
     /// Shape collections, in the jobs' database.
     pub collections: Arc<crate::collections::Collections>,
+
+    /// API keys (when auth is on), rate limits, allowed browser origins.
+    pub auth: Arc<auth::Auth>,
 }
 
 impl AppState {
@@ -137,6 +142,6 @@ pub fn router(state: AppState, settings: &crate::config::ServeArgs) -> axum::Rou
         .merge(routes::docs::router(doc))
         .merge(routes::playground::router())
         .fallback(error::fallback)
-        .with_state(state);
-    layers::apply(app, settings)
+        .with_state(state.clone());
+    layers::apply(app, settings, state.auth)
 }

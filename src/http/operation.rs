@@ -32,7 +32,8 @@ pub async fn run(
     uploads: HashMap<String, InputArray>,
 ) -> Result<Ran, ApiError> {
     let mut inputs = StoreInputs::new(Arc::clone(&state.store))
-        .with_distance_cache(Arc::clone(&state.path_cache));
+        .with_distance_cache(Arc::clone(&state.path_cache))
+        .for_tenant(super::auth::caller().tenant());
     inputs.arrays.extend(uploads);
     let options = RunOptions::deadline(state.solve_timeout);
     Ok(state.runner.run(op, inputs, options).await?)
@@ -63,7 +64,8 @@ pub fn add_timing(doc: &mut Map<String, Value>, timing: &JobTiming, started: Ins
     }
 }
 
-/// Stores the outputs as result datasets and returns the answer document:
+/// Stores the outputs as result datasets of the caller's tenant and returns
+/// the answer document:
 /// the operation's document plus one [`DatasetRef`] per stored output under
 /// its name. A mesh output is one mesh dataset carrying its arrays as
 /// per-vertex properties; those arrays are not stored apart.
@@ -71,11 +73,12 @@ pub async fn store_output(
     state: &AppState,
     mut output: OpOutput,
 ) -> Result<Map<String, Value>, ApiError> {
+    let owner = super::auth::caller().owner;
     let mut doc = output.document_map();
     let mut on_mesh: Vec<&'static str> = Vec::new();
     if let Some(mesh) = output.mesh.take() {
         on_mesh = mesh.vertex_properties.iter().map(|(_, a)| *a).collect();
-        if let Some(reference) = store_mesh(state, &output, mesh.clone()).await? {
+        if let Some(reference) = store_mesh(state, &output, mesh.clone(), owner.clone()).await? {
             doc.insert(mesh.name, reference);
         }
     }
@@ -85,7 +88,12 @@ pub async fn store_output(
         }
         let meta = state
             .store
-            .create(Arc::new(out.array), out.spacing, SourceFormat::Result)
+            .create(
+                Arc::new(out.array),
+                out.spacing,
+                SourceFormat::Result,
+                owner.clone(),
+            )
             .await?;
         doc.insert(out.name, to_value(DatasetRef::from(&meta))?);
     }
@@ -98,6 +106,7 @@ async fn store_mesh(
     state: &AppState,
     output: &OpOutput,
     mesh: OutputMesh,
+    owner: crate::datasets::Owner,
 ) -> Result<Option<Value>, ApiError> {
     let mut columns: Vec<(&'static str, Column)> = Vec::new();
     for (property, array) in &mesh.vertex_properties {
@@ -122,6 +131,7 @@ async fn store_mesh(
             mesh.mesh.report.clone(),
             &props,
             SourceFormat::Result,
+            &owner,
         )
     })
     .await?;

@@ -37,6 +37,8 @@ pub const CHANNEL_CANCEL: &str = "geodex_jobs_cancel";
 const QUEUED: &str = JobState::Queued.as_str();
 /// [`JobState::Running`] in statements.
 const RUNNING: &str = JobState::Running.as_str();
+/// [`JobState::Succeeded`] in statements.
+const SUCCEEDED: &str = JobState::Succeeded.as_str();
 /// [`JobState::Failed`] in statements.
 const FAILED: &str = JobState::Failed.as_str();
 /// [`JobState::Cancelled`] in statements.
@@ -103,6 +105,8 @@ pub struct JobRow {
     pub updated_at: i64,
     /// Removal time, ms.
     pub expires_at: Option<i64>,
+    /// The tenant that submitted it (`''` when auth is off).
+    pub tenant: String,
 }
 
 /// A new job to insert.
@@ -126,6 +130,8 @@ pub struct NewJob {
     pub request_hash: Option<String>,
     /// ms since the epoch.
     pub now: i64,
+    /// The submitting tenant.
+    pub tenant: String,
 }
 
 /// How a finished attempt is written back.
@@ -171,7 +177,18 @@ pub struct Reaped {
 
 const COLUMNS: &str = "id, operation, params, state, priority, time_limit_ms, attempts, max_attempts, \
 lease_owner, lease_until, cancel_requested, progress, idempotency_key, request_hash, result, outputs, \
-error, created_at, started_at, finished_at, updated_at, expires_at";
+error, created_at, started_at, finished_at, updated_at, expires_at, tenant";
+
+/// The total `byte_size` of an `outputs` column (0 if it cannot be read).
+pub fn outputs_bytes(outputs: &str) -> u64 {
+    serde_json::from_str::<std::collections::BTreeMap<String, serde_json::Value>>(outputs)
+        .map(|m| {
+            m.values()
+                .filter_map(|o| o.get("byte_size").and_then(serde_json::Value::as_u64))
+                .sum()
+        })
+        .unwrap_or(0)
+}
 
 /// A statement assembled from constant parts only (never from input).
 macro_rules! sql {
@@ -215,6 +232,7 @@ macro_rules! decode_row {
             finished_at: r.try_get("finished_at")?,
             updated_at: r.try_get("updated_at")?,
             expires_at: r.try_get("expires_at")?,
+            tenant: r.try_get("tenant")?,
         }
     }};
 }
@@ -255,6 +273,14 @@ fn migrator() -> Migrator {
             include_str!("../../migrations/0002_collections.sql").into_sql_str(),
             false,
         ),
+        // API keys (`crate::auth`) and the tenant of jobs and collections.
+        Migration::new(
+            3,
+            Cow::Borrowed("tenants"),
+            MigrationType::Simple,
+            include_str!("../../migrations/0003_tenants.sql").into_sql_str(),
+            false,
+        ),
     ]);
     m.dangerous_set_table_name("geodex_migrations");
     m
@@ -291,6 +317,37 @@ impl JobDb {
         Ok(JobDb::Postgres(pool))
     }
 
+    /// Opens the database named by `--queue`: `sqlite` (the file
+    /// `<data_dir>/jobs.sqlite`), `sqlite:///path/jobs.db`, or
+    /// `postgres://user@host:port/db` (at most `max_connections`). A failure
+    /// never repeats the URL's password.
+    pub async fn open_queue(
+        queue: &str,
+        data_dir: &std::path::Path,
+        max_connections: u32,
+    ) -> Result<Self, DbError> {
+        let hidden = crate::config::redact_url(queue);
+        let scrub = |m: String| crate::config::scrub_secret(&m, queue);
+        let redacted = |e: DbError| match e {
+            DbError::Url(m) => DbError::Url(scrub(m)),
+            DbError::Sqlx(s) => DbError::Url(scrub(s.to_string())),
+            other => other,
+        };
+        if queue.starts_with("postgres://") || queue.starts_with("postgresql://") {
+            JobDb::open_postgres(queue, max_connections)
+                .await
+                .map_err(redacted)
+        } else if queue == "sqlite" {
+            JobDb::open_sqlite(&data_dir.join("jobs.sqlite")).await
+        } else if let Some(path) = queue.strip_prefix("sqlite://") {
+            JobDb::open_sqlite(std::path::Path::new(path)).await
+        } else {
+            Err(DbError::Url(format!(
+                "'{hidden}': expected sqlite, sqlite:///path/jobs.db or postgres://user@host:port/db"
+            )))
+        }
+    }
+
     /// `sqlite` or `postgres`.
     pub fn engine(&self) -> &'static str {
         match self {
@@ -305,8 +362,8 @@ impl JobDb {
         let insert = sql!(
             "INSERT INTO geodex_jobs (id, operation, params, state, priority, time_limit_ms, \
              attempts, max_attempts, cancel_requested, progress, idempotency_key, request_hash, \
-             created_at, updated_at) \
-             VALUES ($1, $2, $3, '{QUEUED}', $4, $5, 0, $6, FALSE, 0, $7, $8, $9, $9) \
+             created_at, updated_at, tenant) \
+             VALUES ($1, $2, $3, '{QUEUED}', $4, $5, 0, $6, FALSE, 0, $7, $8, $9, $9, $10) \
              ON CONFLICT (idempotency_key) DO NOTHING"
         );
         let done = on_pool!(self, p => sqlx::query(insert)
@@ -319,6 +376,7 @@ impl JobDb {
             .bind(&job.idempotency_key)
             .bind(&job.request_hash)
             .bind(job.now)
+            .bind(&job.tenant)
             .execute(p)
             .await?
             .rows_affected());
@@ -355,19 +413,22 @@ impl JobDb {
         }))
     }
 
-    /// Jobs, newest first, optionally of one state, with ids below `before`.
+    /// Jobs of `tenant`, newest first, optionally of one state, with ids
+    /// below `before`.
     pub async fn list(
         &self,
+        tenant: &str,
         state: Option<JobState>,
         before: Option<&str>,
         limit: i64,
     ) -> Result<Vec<JobRow>, DbError> {
         let q = sql!(
-            "SELECT {COLUMNS} FROM geodex_jobs WHERE ($1 IS NULL OR state = $1) \
-             AND ($2 IS NULL OR id < $2) ORDER BY id DESC LIMIT $3"
+            "SELECT {COLUMNS} FROM geodex_jobs WHERE tenant = $1 AND ($2 IS NULL OR state = $2) \
+             AND ($3 IS NULL OR id < $3) ORDER BY id DESC LIMIT $4"
         );
         Ok(on_pool!(self, p => {
             let rows = sqlx::query(q)
+                .bind(tenant)
                 .bind(state.map(JobState::as_str))
                 .bind(before)
                 .bind(limit)
@@ -630,6 +691,27 @@ impl JobDb {
             .await?
             .rows_affected());
         Ok(())
+    }
+
+    /// Bytes of the published results of succeeded jobs, per tenant (the
+    /// `byte_size` of each entry of `outputs`).
+    pub async fn result_bytes(&self) -> Result<Vec<(String, u64)>, DbError> {
+        let q = sql!(
+            "SELECT tenant, outputs FROM geodex_jobs WHERE state = '{SUCCEEDED}' \
+             AND outputs IS NOT NULL"
+        );
+        let rows: Vec<(String, String)> = on_pool!(self, p => {
+            let mut out = Vec::new();
+            for r in sqlx::query(q).fetch_all(p).await? {
+                out.push((r.try_get("tenant")?, r.try_get("outputs")?));
+            }
+            out
+        });
+        let mut by_tenant: std::collections::BTreeMap<String, u64> = Default::default();
+        for (tenant, outputs) in rows {
+            *by_tenant.entry(tenant).or_default() += outputs_bytes(&outputs);
+        }
+        Ok(by_tenant.into_iter().collect())
     }
 
     /// Number of jobs in each state.

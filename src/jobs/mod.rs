@@ -140,21 +140,12 @@ impl Jobs {
         limits: OpLimits,
         io_limits: Limits,
     ) -> Result<Self, JobsError> {
-        let db = if config.queue.starts_with("postgres://")
-            || config.queue.starts_with("postgresql://")
-        {
-            JobDb::open_postgres(&config.queue, (config.workers as u32) * 2 + 4).await?
-        } else if config.queue == "sqlite" {
-            JobDb::open_sqlite(&config.data_dir.join("jobs.sqlite")).await?
-        } else if let Some(path) = config.queue.strip_prefix("sqlite://") {
-            JobDb::open_sqlite(std::path::Path::new(path)).await?
-        } else {
-            return Err(DbError::Url(format!(
-                "'{}': expected sqlite, sqlite:///path/jobs.db or postgres://user@host:port/db",
-                config.queue
-            ))
-            .into());
-        };
+        let db = JobDb::open_queue(
+            &config.queue,
+            &config.data_dir,
+            (config.workers as u32) * 2 + 4,
+        )
+        .await?;
         let results = if config.store == "file" {
             ResultStore::local(&config.data_dir.join("results"))?
         } else {
@@ -168,6 +159,10 @@ impl Jobs {
         );
         tracing::info!(queue = db.engine(), store = results.description(), worker = %worker_id,
             workers = config.workers, "job queue open");
+        // Published results count against the storage quotas with datasets.
+        for (tenant, bytes) in db.result_bytes().await? {
+            datasets.charge_found(bytes, &tenant);
+        }
         Ok(Self {
             db,
             results,

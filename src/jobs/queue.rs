@@ -11,18 +11,23 @@ use super::model::{
     SubmitJob,
 };
 use super::Jobs;
-use crate::datasets::StoreError;
+use crate::datasets::{Owner, StoreError};
 use crate::ops::registry;
 use crate::problem::ApiError;
 
 impl Jobs {
     /// Validates and queues a job. Returns it and whether it is new (false:
     /// an earlier job with the same `Idempotency-Key`).
+    ///
+    /// The job belongs to `owner`'s tenant: the datasets it names must be
+    /// that tenant's, and its `Idempotency-Key` is that tenant's (another
+    /// tenant's same key is another job).
     pub async fn submit(
         &self,
         req: SubmitJob,
         idempotency_key: Option<String>,
         default_priority: Priority,
+        owner: &Owner,
     ) -> Result<(Job, bool), ApiError> {
         let entry = registry::find(&req.operation).ok_or_else(|| {
             ApiError::invalid_field(
@@ -65,7 +70,7 @@ impl Jobs {
         }
         let prepared = entry.prepare(&req.params, &self.limits)?;
         for (field, id) in &prepared.datasets {
-            match self.datasets.meta(id) {
+            match self.datasets.meta_of(id, &owner.tenant) {
                 Ok(_) => {}
                 Err(StoreError::NotFound(_)) => {
                     return Err(ApiError::not_found(
@@ -93,8 +98,11 @@ impl Jobs {
             time_limit_ms,
             max_attempts: i64::from(self.config.max_attempts.max(1)),
             request_hash: idempotency_key.as_ref().map(|_| hash.clone()),
-            idempotency_key,
+            // The column is unique across tenants: each tenant's keys live
+            // under its own prefix (a tenant name holds no '/').
+            idempotency_key: idempotency_key.map(|k| format!("{}/{k}", owner.tenant)),
             now: now_ms(),
+            tenant: owner.tenant.clone(),
         };
         let (row, created) = self.db.insert(&new).await?;
         if !created && row.request_hash.as_deref() != Some(hash.as_str()) {
@@ -112,27 +120,29 @@ impl Jobs {
         Ok((Job::from(&row), created))
     }
 
-    /// One job.
-    pub async fn get(&self, id: &str) -> Result<Option<JobRow>, ApiError> {
+    /// One job of `tenant` (another tenant's job is `None`, as an unknown id).
+    pub async fn get(&self, id: &str, tenant: &str) -> Result<Option<JobRow>, ApiError> {
         if !valid_id(id) {
             return Ok(None);
         }
-        Ok(self.db.get(id).await?)
+        Ok(self.db.get(id).await?.filter(|r| r.tenant == tenant))
     }
 
-    /// A page of jobs, newest first.
+    /// A page of `tenant`'s jobs, newest first.
     pub async fn list(
         &self,
+        tenant: &str,
         state: Option<JobState>,
         cursor: Option<&str>,
         limit: i64,
     ) -> Result<Vec<JobRow>, ApiError> {
-        Ok(self.db.list(state, cursor, limit).await?)
+        Ok(self.db.list(tenant, state, cursor, limit).await?)
     }
 
-    /// Cancels a job (see [`JobDb::cancel`]).
-    pub async fn cancel(&self, id: &str) -> Result<Option<JobRow>, ApiError> {
-        if !valid_id(id) {
+    /// Cancels a job of `tenant` (see [`JobDb::cancel`]); another tenant's
+    /// job is left alone and reported unknown.
+    pub async fn cancel(&self, id: &str, tenant: &str) -> Result<Option<JobRow>, ApiError> {
+        if self.get(id, tenant).await?.is_none() {
             return Ok(None);
         }
         let now = now_ms();

@@ -28,6 +28,41 @@ pub enum ResultStoreError {
     Url(String),
 }
 
+/// The problem of a failed result write: a full disk is a 507 (the job
+/// fails; running it again would fill the disk again), anything else a 500
+/// (the attempt is retried).
+pub fn storage_error(e: ResultStoreError) -> crate::problem::ApiError {
+    let full = match &e {
+        ResultStoreError::Store(object_store::Error::Generic { source, .. }) => {
+            is_disk_full(source.as_ref())
+        }
+        _ => false,
+    } || e.to_string().contains("No space left on device");
+    if full {
+        crate::problem::ApiError::insufficient_storage(
+            "the disk of the result store is full; the operator must free space or move \
+             --store, then the job can be submitted again",
+        )
+    } else {
+        crate::problem::ApiError::internal(e)
+    }
+}
+
+/// True if `e` or one of its sources is an IO error for a full disk.
+fn is_disk_full(e: &(dyn std::error::Error + 'static)) -> bool {
+    let mut next = Some(e);
+    while let Some(err) = next {
+        if err
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::StorageFull)
+        {
+            return true;
+        }
+        next = err.source();
+    }
+    false
+}
+
 /// Where job results live.
 #[derive(Debug, Clone)]
 pub struct ResultStore {

@@ -204,6 +204,10 @@ impl Jobs {
                 }
                 for (id, op) in &r.failed {
                     tracing::warn!(job = %id, "lease expired after the last attempt; job failed");
+                    // The partial files of its killed attempts go with it.
+                    if let Err(e) = self.results.remove_job(id, None).await {
+                        tracing::warn!(job = %id, error = %e, "removing a failed job's files failed");
+                    }
                     metrics::counter!(JOB_FAILURES, "operation" => op.clone(), "reason" => "attempts")
                         .increment(1);
                 }
@@ -236,8 +240,13 @@ impl Jobs {
                 return Ok(total);
             }
             for id in &ids {
+                let row = self.db.get(id).await?;
                 self.results.remove_job(id, None).await?;
                 self.db.delete(id).await?;
+                if let Some(r) = row.filter(|r| r.state == JobState::Succeeded) {
+                    let bytes = r.outputs.as_deref().map_or(0, super::db::outputs_bytes);
+                    self.datasets.release(bytes, &r.tenant);
+                }
             }
             total += ids.len();
         }
@@ -354,7 +363,7 @@ impl Jobs {
             Ok(op) => op,
             Err(e) => return Outcome::Failed(ApiError::from(e).nested_in("params"), "invalid"),
         };
-        let inputs = StoreInputs::new(Arc::clone(&self.datasets));
+        let inputs = StoreInputs::new(Arc::clone(&self.datasets)).for_tenant(&row.tenant);
         // Backstop only: the heartbeat enforces the time limit through the flag.
         let backstop = Duration::from_millis(u64::try_from(row.time_limit_ms).unwrap_or(0))
             + self.config.lease
@@ -367,6 +376,8 @@ impl Jobs {
         match self.runner.run(op, inputs, options).await {
             Ok(Ran { output, .. }) => match self.store_output(row, lease, output).await {
                 Ok((doc, outputs)) => Outcome::Succeeded(doc, outputs),
+                // Over the quota or the disk full: running again would not help.
+                Err(e) if e.status_code() == 507 => Outcome::Failed(e, "storage"),
                 Err(e) => Outcome::Retry(e),
             },
             Err(RunError::Invalid(e)) => {
@@ -390,12 +401,39 @@ impl Jobs {
 
     /// Writes every output array (put-if-absent under this attempt's keys)
     /// and builds the result document; nothing is published yet.
+    ///
+    /// Each array is counted against the storage quotas (the service's and
+    /// the job's tenant's) before it is written: beyond them the attempt
+    /// fails with a 507, and whatever it wrote is removed and given back.
     async fn store_output(
         &self,
         row: &JobRow,
         lease: &Lease,
-        mut output: OpOutput,
+        output: OpOutput,
     ) -> Result<(Value, BTreeMap<String, StoredOutput>), ApiError> {
+        let mut charged = 0u64;
+        let result = self.write_outputs(row, lease, output, &mut charged).await;
+        if result.is_err() {
+            self.datasets.release(charged, &row.tenant);
+            let _ = self
+                .results
+                .remove_job_attempt(&row.id, lease.attempt)
+                .await;
+        }
+        result
+    }
+
+    async fn write_outputs(
+        &self,
+        row: &JobRow,
+        lease: &Lease,
+        mut output: OpOutput,
+        charged: &mut u64,
+    ) -> Result<(Value, BTreeMap<String, StoredOutput>), ApiError> {
+        let owner = crate::datasets::Owner {
+            tenant: row.tenant.clone(),
+            quota_bytes: None,
+        };
         let mut doc = output.document_map();
         let mut stored = BTreeMap::new();
         for out in output.arrays {
@@ -408,10 +446,14 @@ impl Jobs {
                 .map_err(ApiError::internal)?;
             let key = ResultStore::key(&row.id, lease.attempt, &out.name);
             let byte_size = bytes.len() as u64;
+            self.datasets
+                .reserve(byte_size, &owner)
+                .map_err(|e| ApiError::from(e).with_field(format!("result.{}", out.name)))?;
+            *charged += byte_size;
             self.results
                 .put_new(&key, bytes)
                 .await
-                .map_err(ApiError::internal)?;
+                .map_err(super::results::storage_error)?;
             let reference = super::ResultRef {
                 url: format!("/v1/jobs/{}/results/{}", row.id, out.name),
                 shape: shape.clone(),
@@ -456,6 +498,12 @@ impl Jobs {
             expires_at,
         };
         let reason = flags.reason();
+        // The bytes this attempt's results hold against the quotas: kept
+        // only if they are published below.
+        let charged: u64 = match &outcome {
+            Outcome::Succeeded(_, outputs) => outputs.values().map(|o| o.byte_size).sum(),
+            _ => 0,
+        };
         let (write, label): (Option<Finish>, &'static str) = match outcome {
             Outcome::Succeeded(doc, outputs) => {
                 if reason == Some(StopReason::LeaseLost) {
@@ -544,6 +592,7 @@ impl Jobs {
             }
         };
         let Some(f) = write else {
+            self.datasets.release(charged, &row.tenant);
             let _ = self
                 .results
                 .remove_job_attempt(&row.id, lease.attempt)
@@ -552,16 +601,17 @@ impl Jobs {
         };
         match self.db.finish(lease, &f).await {
             Ok(true) => {
-                if f.state == JobState::Succeeded {
-                    // Objects of earlier attempts that died before publishing.
-                    if let Err(e) = self.results.remove_job(&row.id, Some(lease.attempt)).await {
-                        tracing::warn!(job = %row.id, error = %e, "removing stale attempt objects failed");
-                    }
+                // A succeeded job keeps only this attempt's objects; a failed
+                // or cancelled one keeps none (partial files of every attempt).
+                let keep = (f.state == JobState::Succeeded).then_some(lease.attempt);
+                if let Err(e) = self.results.remove_job(&row.id, keep).await {
+                    tracing::warn!(job = %row.id, error = %e, "removing stale attempt objects failed");
                 }
                 tracing::info!(job = %row.id, state = f.state.as_str(), attempt = lease.attempt, "job ended");
                 label
             }
             Ok(false) => {
+                self.datasets.release(charged, &row.tenant);
                 tracing::warn!(job = %row.id, "lease lost before the result was published; discarded");
                 let _ = self
                     .results
@@ -570,6 +620,7 @@ impl Jobs {
                 "lease_lost"
             }
             Err(e) => {
+                self.datasets.release(charged, &row.tenant);
                 tracing::warn!(job = %row.id, error = %e, "writing the job's end failed; its lease will expire");
                 "db_error"
             }

@@ -41,6 +41,13 @@ length in the metric (`∫W`, `∫sqrt(γ'ᵀMγ')`, on a mesh the distance `U` 
 `interpretation`, `design`), a Riemannian one the `metric` section (a tensor field).\n\
 - Renamed fields and values (listed in CHANGELOG.md) answer 422 naming the new spelling.\n\n\
 Every error is an RFC 9457 `application/problem+json` document naming the offending field.\n\n\
+**Authentication**: a service started with `--auth` (or once any key exists) needs an API key on \
+every route but `/healthz`, `/readyz`, this document, `/docs` and the playground: \
+`Authorization: Bearer gdx_...` (or `X-API-Key`), created by the operator with `geodex keys create \
+--tenant NAME`. A missing, unknown or revoked key is a 401; a key's rate limit a 429 with \
+`Retry-After`. Datasets, jobs (with their results and idempotency keys) and collections belong to \
+the key's tenant: another tenant is answered 404 for them. Requests that change something from a \
+browser page of another origin are refused 403 (`Origin`, `Sec-Fetch-Site`).\n\n\
 **Try it**: the playground at `/playground` (the service's own page) clicks sources, paths, seeds and \
 meshes through these endpoints alone and shows each request as curl; every operation below carries a \
 request and an answer example recorded from a real call.",
@@ -55,6 +62,7 @@ request and an answer example recorded from a real call.",
         (name = "jobs", description = "Durable background jobs: submit any operation, poll, cancel, download results."),
         (name = "collections", description = "Shape collections: add meshes by their geodesic descriptors, query the nearest shapes of a mesh."),
     ),
+    modifiers(&BearerKey),
     components(
         schemas(Problem, FileBytes),
         responses(
@@ -73,6 +81,36 @@ request and an answer example recorded from a real call.",
     )
 )]
 pub struct ApiDoc;
+
+/// The `api_key` security scheme (HTTP bearer), optional on every operation:
+/// a service without auth takes requests without it.
+struct BearerKey;
+
+impl utoipa::Modify for BearerKey {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::{
+            HttpAuthScheme, HttpBuilder, SecurityRequirement, SecurityScheme,
+        };
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "api_key",
+            SecurityScheme::Http(
+                HttpBuilder::new()
+                    .scheme(HttpAuthScheme::Bearer)
+                    .bearer_format("gdx_<16 hex>_<64 hex>")
+                    .description(Some(
+                        "An API key from `geodex keys create`; needed when the service runs \
+                         with auth (see the description above).",
+                    ))
+                    .build(),
+            ),
+        );
+        openapi.security = Some(vec![
+            SecurityRequirement::default(),
+            SecurityRequirement::new("api_key", Vec::<String>::new()),
+        ]);
+    }
+}
 
 /// The body cannot be parsed: malformed JSON, a corrupt or truncated file, a bad path or query.
 #[derive(ToResponse)]

@@ -18,6 +18,8 @@ window.GX = window.GX || {};
     const url = location.origin + path;
     const parts = ["curl -s"];
     if (method !== "GET") parts.push("-X " + method);
+    // The key itself is never shown: the command reads it from the shell.
+    if (GX.key) parts.push("-H \"authorization: Bearer $GEODEX_KEY\"");
     if (opts.json !== undefined) {
       parts.push("-H 'content-type: application/json'");
       parts.push("-d " + shellQuote(JSON.stringify(opts.json)));
@@ -50,6 +52,7 @@ window.GX = window.GX || {};
   async function api(method, path, opts) {
     opts = opts || {};
     const init = { method, headers: {} };
+    if (GX.key) init.headers["authorization"] = "Bearer " + GX.key;
     if (opts.json !== undefined) {
       init.headers["content-type"] = "application/json";
       init.body = JSON.stringify(opts.json);
@@ -69,6 +72,10 @@ window.GX = window.GX || {};
       throw e;
     }
     entry.status = res.status;
+    if (res.status === 401 && !opts.retried && askKey()) {
+      record(entry);
+      return api(method, path, { ...opts, retried: true });
+    }
     let body;
     if (!res.ok) {
       const text = await res.text();
@@ -88,6 +95,32 @@ window.GX = window.GX || {};
     entry.ms = performance.now() - t0;
     record(entry);
     return body;
+  }
+
+  /**
+   * Asks for an API key once (a service with auth answered 401) and keeps it
+   * in this browser's localStorage; true if one was given.
+   */
+  let asked = false;
+  function askKey() {
+    if (asked) return false;
+    asked = true;
+    const key = window.prompt("This geodex needs an API key (the operator creates one with `geodex keys create --tenant NAME`):", "");
+    if (!key) return false;
+    GX.key = key.trim();
+    try { localStorage.setItem("geodex.key", GX.key); } catch (_) { /* private mode */ }
+    return true;
+  }
+  try { GX.key = localStorage.getItem("geodex.key") || ""; } catch (_) { GX.key = ""; }
+
+  /**
+   * A URL an <img> can show: the URL itself, or, when the page sends an API
+   * key (an <img> cannot), an object URL of the picture fetched with it.
+   */
+  async function src(url) {
+    if (!GX.key || !url.startsWith("/")) return url;
+    const blob = await api("GET", url, { as: "blob" });
+    return URL.createObjectURL(blob);
   }
 
   /** Uploads a Blob as a dataset; answers its metadata ({id, shape, ...}). */
@@ -133,6 +166,7 @@ window.GX = window.GX || {};
   }
 
   GX.api = api;
+  GX.src = src;
   GX.upload = upload;
   GX.parseNpy = parseNpy;
   GX.fail = fail;

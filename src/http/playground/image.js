@@ -189,11 +189,12 @@ window.GX = window.GX || {};
 
   // ---- image loading ------------------------------------------------------
 
-  function setImg(img, src) {
+  async function setImg(img, src) {
+    const url = await GX.src(src);
     return new Promise((ok, bad) => {
       img.onload = () => ok(img);
       img.onerror = () => bad(new Error("could not load " + src));
-      img.src = src;
+      img.src = url;
     });
   }
 

@@ -45,7 +45,7 @@ window.GX = window.GX || {};
         if (job.state === "queued" || job.state === "running") { poll(); return; }
         $("job-cancel").disabled = true;
         if (job.state === "succeeded" && job.result && job.result.distance) {
-          $("job-result").src = job.result.distance.url + "?format=png";
+          $("job-result").src = await GX.src(job.result.distance.url + "?format=png");
           GX.status(`job ${job.id} succeeded: ${JSON.stringify(job.result.stats || {})}`);
         }
         list();

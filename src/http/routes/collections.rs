@@ -17,6 +17,7 @@ use serde_json::Value;
 use utoipa::{IntoParams, ToSchema};
 
 use crate::collections::{valid_id, Collection, CollectionShape, Match, NewShape};
+use crate::http::auth::caller;
 use crate::http::extract::{ApiJson, ApiPath, ApiQuery};
 use crate::http::operation::{add_timing, run};
 use crate::http::routes::mesh::take_descriptor;
@@ -161,7 +162,7 @@ async fn collection(state: &AppState, id: &str) -> Result<Collection, ApiError> 
     }
     state
         .collections
-        .get(id)
+        .get(id, caller().tenant())
         .await?
         .ok_or_else(|| not_found(id))
 }
@@ -213,7 +214,7 @@ pub async fn create_collection(
     body.descriptor.validate("descriptor.")?;
     let c = state
         .collections
-        .create(&body.name, body.descriptor)
+        .create(&body.name, body.descriptor, caller().tenant())
         .await?;
     let mut res = (StatusCode::CREATED, Json(&c)).into_response();
     if let Ok(v) = HeaderValue::from_str(&c.url) {
@@ -251,7 +252,7 @@ pub async fn list_collections(
     )?;
     let mut collections = state
         .collections
-        .list(query.cursor.as_deref(), limit + 1)
+        .list(caller().tenant(), query.cursor.as_deref(), limit + 1)
         .await?;
     let more = collections.len() as i64 > limit;
     collections.truncate(limit as usize);
@@ -310,7 +311,12 @@ pub async fn delete_collection(
     State(state): State<AppState>,
     ApiPath(path): ApiPath<CollectionPath>,
 ) -> Result<StatusCode, ApiError> {
-    if !valid_id(&path.id, "col_") || !state.collections.delete(&path.id).await? {
+    if !valid_id(&path.id, "col_")
+        || !state
+            .collections
+            .delete(&path.id, caller().tenant())
+            .await?
+    {
         return Err(not_found(&path.id));
     }
     Ok(StatusCode::NO_CONTENT)

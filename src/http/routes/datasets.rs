@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::datasets::{valid_id, DatasetMeta, StoreError};
+use crate::http::auth::caller;
 use crate::http::extract::{bytes_rejection, ApiPath, ApiQuery};
 use crate::http::AppState;
 use crate::io::mesh::{glb, read_mesh, write, MeshFormat, MeshLimits};
@@ -683,7 +684,9 @@ pub async fn list(
             ));
         }
     }
-    let page = state.store.list(limit, query.cursor.as_deref());
+    let page = state
+        .store
+        .list(caller().tenant(), limit, query.cursor.as_deref());
     let link = page
         .next
         .as_ref()
@@ -804,6 +807,7 @@ pub async fn upload(
             Arc::new(decoded.array),
             decoded.spacing,
             decoded.format.into(),
+            caller().owner,
         )
         .await?;
     let location = format!("/v1/datasets/{}", meta.id);
@@ -833,7 +837,7 @@ pub async fn get_meta(
     ApiPath(path): ApiPath<DatasetPath>,
 ) -> Result<Json<DatasetMeta>, ApiError> {
     check_id(&path.id)?;
-    Ok(Json(state.store.meta(&path.id)?))
+    Ok(Json(state.store.meta_of(&path.id, caller().tenant())?))
 }
 
 /// Deletes a dataset.
@@ -855,6 +859,7 @@ pub async fn delete(
     ApiPath(path): ApiPath<DatasetPath>,
 ) -> Result<StatusCode, ApiError> {
     check_id(&path.id)?;
+    state.store.meta_of(&path.id, caller().tenant())?;
     state.store.delete(&path.id).await?;
     Ok(StatusCode::NO_CONTENT)
 }
@@ -974,7 +979,8 @@ pub async fn get_data(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     check_id(&path.id)?;
-    if state.store.meta(&path.id)?.kind == crate::datasets::DatasetKind::Mesh {
+    if state.store.meta_of(&path.id, caller().tenant())?.kind == crate::datasets::DatasetKind::Mesh
+    {
         return mesh_data(
             &state,
             &path.id,
@@ -994,13 +1000,14 @@ pub async fn get_data(
         let picture = query.picture()?;
         let input = state.store.load(&path.id).await?;
         let under = match &picture.over {
-            Some(over) => Some(
+            Some(over) => {
+                let over_field = |e: StoreError| ApiError::from(e).with_field("over");
                 state
                     .store
-                    .load(over)
-                    .await
-                    .map_err(|e| ApiError::from(e).with_field("over"))?,
-            ),
+                    .meta_of(over, caller().tenant())
+                    .map_err(over_field)?;
+                Some(state.store.load(over).await.map_err(over_field)?)
+            }
             None => None,
         };
         let bytes = tokio::task::spawn_blocking(move || {
@@ -1069,8 +1076,15 @@ async fn upload_mesh(
         _ => ApiError::invalid_field("body", e.to_string()),
     })?;
     let store = state.store.clone();
+    let owner = caller().owner;
     let meta = crate::datasets::blocking(move || {
-        store.create_mesh_blocking(&loaded.mesh, loaded.report.clone(), &[], format.into())
+        store.create_mesh_blocking(
+            &loaded.mesh,
+            loaded.report.clone(),
+            &[],
+            format.into(),
+            &owner,
+        )
     })
     .await?;
     let location = format!("/v1/datasets/{}", meta.id);

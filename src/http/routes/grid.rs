@@ -292,6 +292,7 @@ pub async fn distance(
                     Arc::new(decoded.array),
                     decoded.spacing,
                     SourceFormat::from(decoded.format),
+                    crate::http::auth::caller().owner,
                 )
                 .await?;
             if let Some(cost) = params.cost.as_mut() {

@@ -22,18 +22,25 @@ pub struct Health {
 pub struct Ready {
     /// `ready`.
     pub status: &'static str,
-    /// Pool threads.
-    pub pool_threads: usize,
+    /// Pool threads. The details below are shown when auth is off, or to an
+    /// admin key.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pool_threads: Option<usize>,
     /// Admission capacity (waiting + running solves).
-    pub pool_capacity: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pool_capacity: Option<usize>,
     /// Solves waiting for a thread.
-    pub queued: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub queued: Option<usize>,
     /// Solves running.
-    pub running: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub running: Option<usize>,
     /// Bytes of stored datasets.
-    pub storage_used_bytes: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub storage_used_bytes: Option<u64>,
     /// Storage quota in bytes.
-    pub storage_quota_bytes: u64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub storage_quota_bytes: Option<u64>,
 }
 
 /// Liveness: the process answers. Instant; never touches the pool or storage.
@@ -59,7 +66,7 @@ pub async fn healthz() -> Json<Health> {
     path = "/readyz",
     tag = "operations",
     summary = "Readiness probe",
-    description = "Answers 200 when the solver pool can admit a solve and the dataset storage is usable, and 503 while the service drains after SIGTERM, when storage is unusable, or while every admission slot of the pool is taken (a long or stuck solve: new work would be refused).",
+    description = "Answers 200 when the solver pool can admit a solve and the dataset storage is usable (with the pool's and the storage's figures when auth is off or the key is an admin's), and 503 while the service drains after SIGTERM, when storage is unusable, or while every admission slot of the pool is taken (a long or stuck solve: new work would be refused).",
     responses(
         (status = 200, description = "Ready to take requests.", body = Ready, example = json!({
             "status": "ready", "pool_threads": 8, "pool_capacity": 16, "queued": 0, "running": 1,
@@ -96,15 +103,26 @@ pub async fn readyz(State(state): State<AppState>) -> Result<Json<Ready>, ApiErr
             1,
         ));
     }
+    if !crate::http::auth::caller().admin {
+        return Ok(Json(Ready {
+            status: "ready",
+            pool_threads: None,
+            pool_capacity: None,
+            queued: None,
+            running: None,
+            storage_used_bytes: None,
+            storage_quota_bytes: None,
+        }));
+    }
     let (used, quota) = state.store.usage();
     Ok(Json(Ready {
         status: "ready",
-        pool_threads: state.pool.threads(),
-        pool_capacity: state.pool.capacity(),
-        queued,
-        running,
-        storage_used_bytes: used,
-        storage_quota_bytes: quota,
+        pool_threads: Some(state.pool.threads()),
+        pool_capacity: Some(state.pool.capacity()),
+        queued: Some(queued),
+        running: Some(running),
+        storage_used_bytes: Some(used),
+        storage_quota_bytes: Some(quota),
     }))
 }
 

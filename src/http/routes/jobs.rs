@@ -14,6 +14,7 @@ use axum::Json;
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
+use crate::http::auth::caller;
 use crate::http::extract::{ApiJson, ApiPath, ApiQuery};
 use crate::http::routes::datasets::{encode, negotiate, DataQuery, OutputFormat};
 use crate::http::AppState;
@@ -121,7 +122,12 @@ pub async fn respond_async<O: Operation>(
     };
     let (job, created) = state
         .jobs
-        .submit(submit, idempotency_key(headers)?, Priority::Interactive)
+        .submit(
+            submit,
+            idempotency_key(headers)?,
+            Priority::Interactive,
+            &caller().owner,
+        )
         .await?;
     let mut res = accepted(&job, created);
     res.headers_mut().insert(
@@ -169,7 +175,10 @@ pub async fn submit(
     ApiJson(body): ApiJson<SubmitJob>,
 ) -> Result<Response, ApiError> {
     let key = idempotency_key(&headers)?;
-    let (job, created) = state.jobs.submit(body, key, Priority::Batch).await?;
+    let (job, created) = state
+        .jobs
+        .submit(body, key, Priority::Batch, &caller().owner)
+        .await?;
     Ok(accepted(&job, created))
 }
 
@@ -202,7 +211,12 @@ pub async fn list(
     )?;
     let rows = state
         .jobs
-        .list(query.state, query.cursor.as_deref(), limit + 1)
+        .list(
+            caller().tenant(),
+            query.state,
+            query.cursor.as_deref(),
+            limit + 1,
+        )
         .await?;
     let more = rows.len() as i64 > limit;
     let jobs: Vec<Job> = rows.iter().take(limit as usize).map(Job::from).collect();
@@ -245,7 +259,7 @@ pub async fn get(
 ) -> Result<Response, ApiError> {
     let row = state
         .jobs
-        .get(&path.id)
+        .get(&path.id, caller().tenant())
         .await?
         .ok_or_else(|| job_not_found(&path.id))?;
     let job = Job::from(&row);
@@ -282,7 +296,7 @@ pub async fn cancel(
 ) -> Result<Response, ApiError> {
     let row = state
         .jobs
-        .cancel(&path.id)
+        .cancel(&path.id, caller().tenant())
         .await?
         .ok_or_else(|| job_not_found(&path.id))?;
     let job = Job::from(&row);
@@ -341,7 +355,7 @@ pub async fn result(
 ) -> Result<Response, ApiError> {
     let row = state
         .jobs
-        .get(&path.id)
+        .get(&path.id, caller().tenant())
         .await?
         .ok_or_else(|| job_not_found(&path.id))?;
     if row.state != JobState::Succeeded {
