@@ -67,7 +67,8 @@ impl Application {
         })
         .with_context(|| format!("opening the data directory {}", settings.data_dir.display()))?;
         let pool = SolverPool::new(settings.threads(), settings.capacity())
-            .context("starting the solver pool")?;
+            .context("starting the solver pool")?
+            .with_memory_budget(settings.solve_memory());
         let store = Arc::new(store);
         let pool = Arc::new(pool);
         let op_limits = OpLimits {

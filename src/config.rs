@@ -42,6 +42,12 @@ pub struct ServeArgs {
     /// every connection is busy. Lowered to fit the open-file limit.
     #[arg(long, env = "GEODEX_MAX_CONNECTIONS", default_value_t = 4096)]
     pub max_connections: usize,
+    /// Estimated peak memory all admitted solves and upload decodes may hold
+    /// together, in bytes; beyond it the next one gets 503 + Retry-After
+    /// (413 if it alone is larger). Default: three quarters of the
+    /// machine's memory.
+    #[arg(long, env = "GEODEX_SOLVE_MEMORY_BYTES")]
+    pub solve_memory_bytes: Option<u64>,
     /// Largest grid or array, in cells.
     #[arg(long, env = "GEODEX_MAX_CELLS", default_value_t = 512 * 512 * 512)]
     pub max_cells: usize,
@@ -152,6 +158,7 @@ impl Default for ServeArgs {
             header_timeout_secs: 10.0,
             body_timeout_secs: 30.0,
             max_connections: 4096,
+            solve_memory_bytes: None,
             max_cells: 512 * 512 * 512,
             storage_quota_bytes: 8 << 30,
             dataset_ttl_secs: 24 * 3600,
@@ -243,6 +250,21 @@ impl ServeArgs {
         self.pool_threads
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
             .max(1)
+    }
+
+    /// The memory budget of the solver pool, resolved: the flag, or three
+    /// quarters of the memory `/proc/meminfo` reports (8 GiB if unknown).
+    pub fn solve_memory(&self) -> u64 {
+        self.solve_memory_bytes.unwrap_or_else(|| {
+            std::fs::read_to_string("/proc/meminfo")
+                .ok()
+                .and_then(|m| {
+                    m.lines()
+                        .find_map(|l| l.strip_prefix("MemTotal:"))
+                        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+                })
+                .map_or(8 << 30, |kib| kib.saturating_mul(1024) / 4 * 3)
+        })
     }
 
     /// Admission capacity, resolved (at least 1).

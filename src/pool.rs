@@ -4,6 +4,12 @@
 //! * **Admission.** At most `capacity` solves are admitted at once (waiting +
 //!   running). [`SolverPool::run`] refuses the next one immediately with
 //!   [`PoolError::Busy`] (the HTTP layer answers 503 with `Retry-After`).
+//! * **Memory.** Each solve or decode states its estimated peak memory
+//!   ([`SolverPool::run_sized`], estimated from shapes and counts known
+//!   before anything is allocated), and the estimates of the admitted ones
+//!   never add up to more than the memory budget: beyond it the next one is
+//!   refused with [`PoolError::NoMemory`] (503 + `Retry-After`), and one
+//!   that would not fit even alone with [`PoolError::TooBig`] (413).
 //! * **Bridge.** An admitted job is handed to the pool with `spawn` and its
 //!   result comes back through a `tokio::sync::oneshot` channel.
 //! * **Cancellation.** Each job gets its own cancel flag, passed to the core
@@ -13,7 +19,7 @@
 //!   waiting never starts; a running one stops at the solver's next poll, and
 //!   its admission slot is freed when the closure returns.
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -30,6 +36,31 @@ pub enum PoolError {
     Busy {
         /// The admission capacity.
         capacity: usize,
+    },
+    /// The solves admitted now hold so much of the memory budget that this
+    /// one does not fit; try again later.
+    #[error(
+        "the solves running now hold {in_use} of the {budget} bytes of memory this service \
+         gives them, and this one needs an estimated {needed}; retry later"
+    )]
+    NoMemory {
+        /// Estimated peak bytes of this solve.
+        needed: u64,
+        /// Bytes held by the admitted ones.
+        in_use: u64,
+        /// The budget.
+        budget: u64,
+    },
+    /// This solve alone would need more than the whole memory budget.
+    #[error(
+        "this needs an estimated {needed} bytes of memory, more than the {budget} this \
+         service gives all its solves together (--solve-memory-bytes); make it smaller"
+    )]
+    TooBig {
+        /// Estimated peak bytes.
+        needed: u64,
+        /// The budget.
+        budget: u64,
     },
     /// The deadline passed before the job finished; it was cancelled.
     #[error("the solve did not finish within {0:?} and was cancelled")]
@@ -57,6 +88,22 @@ pub struct SolverPool {
     threads: usize,
     waiting: Arc<AtomicUsize>,
     running: Arc<AtomicUsize>,
+    /// Bytes all admitted solves may hold together (estimated peaks).
+    memory_budget: u64,
+    /// Estimated peak bytes of the solves admitted now.
+    memory_held: Arc<AtomicU64>,
+}
+
+/// Gives back an admitted solve's estimated bytes when dropped.
+struct Held {
+    held: Arc<AtomicU64>,
+    bytes: u64,
+}
+
+impl Drop for Held {
+    fn drop(&mut self) {
+        self.held.fetch_sub(self.bytes, Ordering::SeqCst);
+    }
 }
 
 /// Raises the cancel flag when dropped (client gone, deadline, or done).
@@ -109,7 +156,55 @@ impl SolverPool {
             threads,
             waiting: Arc::new(AtomicUsize::new(0)),
             running: Arc::new(AtomicUsize::new(0)),
+            memory_budget: u64::MAX,
+            memory_held: Arc::new(AtomicU64::new(0)),
         })
+    }
+
+    /// The same pool whose admitted solves may hold at most `bytes` of
+    /// estimated peak memory together.
+    pub fn with_memory_budget(mut self, bytes: u64) -> Self {
+        self.memory_budget = bytes.max(1);
+        self
+    }
+
+    /// The memory budget and the estimated bytes held now.
+    pub fn memory(&self) -> (u64, u64) {
+        (self.memory_budget, self.memory_held.load(Ordering::SeqCst))
+    }
+
+    /// Takes `bytes` of the memory budget, or says why not.
+    fn hold(&self, bytes: u64) -> Result<Held, PoolError> {
+        if bytes > self.memory_budget {
+            return Err(PoolError::TooBig {
+                needed: bytes,
+                budget: self.memory_budget,
+            });
+        }
+        let mut in_use = self.memory_held.load(Ordering::SeqCst);
+        loop {
+            if in_use.saturating_add(bytes) > self.memory_budget {
+                return Err(PoolError::NoMemory {
+                    needed: bytes,
+                    in_use,
+                    budget: self.memory_budget,
+                });
+            }
+            match self.memory_held.compare_exchange(
+                in_use,
+                in_use + bytes,
+                Ordering::SeqCst,
+                Ordering::SeqCst,
+            ) {
+                Ok(_) => {
+                    return Ok(Held {
+                        held: Arc::clone(&self.memory_held),
+                        bytes,
+                    })
+                }
+                Err(now) => in_use = now,
+            }
+        }
     }
 
     /// Admission capacity (waiting + running).
@@ -150,6 +245,26 @@ impl SolverPool {
         T: Send + 'static,
         F: FnOnce(&Control<'_>) -> T + Send + 'static,
     {
+        self.run_sized(operation, deadline, 0, job).await
+    }
+
+    /// [`Self::run`] for a job whose peak memory is estimated at `bytes`:
+    /// admitted only while the estimates of the admitted jobs, this one's
+    /// included, fit in the memory budget.
+    pub async fn run_sized<T, F>(
+        &self,
+        operation: &'static str,
+        deadline: Duration,
+        bytes: u64,
+        job: F,
+    ) -> Result<(T, JobTiming), PoolError>
+    where
+        T: Send + 'static,
+        F: FnOnce(&Control<'_>) -> T + Send + 'static,
+    {
+        let held = self.hold(bytes).inspect_err(|_| {
+            metrics::counter!(telemetry::REJECTED).increment(1);
+        })?;
         let permit: OwnedSemaphorePermit = match Arc::clone(&self.permits).try_acquire_owned() {
             Ok(p) => p,
             Err(_) => {
@@ -167,6 +282,7 @@ impl SolverPool {
         let running = Arc::clone(&self.running);
         self.pool.spawn(move || {
             let _permit = permit;
+            let _held = held;
             drop(waiting);
             if flag.load(Ordering::Relaxed) {
                 return; // cancelled before it started: never run it
@@ -285,6 +401,68 @@ mod tests {
             }
         }
         assert_eq!(ok, Some(7));
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn admits_by_estimated_memory() {
+        let pool = Arc::new(SolverPool::new(2, 8).expect("pool").with_memory_budget(100));
+        let (started_tx, started_rx) = std::sync::mpsc::channel();
+        let p = Arc::clone(&pool);
+        let first = tokio::spawn(async move {
+            p.run_sized("t", Duration::from_millis(300), 60, move |c| {
+                let _ = started_tx.send(());
+                spin_until_cancelled(c)
+            })
+            .await
+        });
+        started_rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("first job started");
+        assert_eq!(pool.memory(), (100, 60));
+        // 60 + 60 > 100: refused while the first holds its bytes ...
+        let second = pool.run_sized("t", Duration::from_secs(1), 60, |_| 2).await;
+        assert_eq!(
+            second.map(|r| r.0),
+            Err(PoolError::NoMemory {
+                needed: 60,
+                in_use: 60,
+                budget: 100
+            })
+        );
+        // ... a small one fits beside it ...
+        let small = pool.run_sized("t", Duration::from_secs(5), 40, |_| 3).await;
+        assert_eq!(small.map(|r| r.0), Ok(3));
+        // ... and one larger than the budget never fits.
+        let huge = pool
+            .run_sized("t", Duration::from_secs(1), 101, |_| 4)
+            .await;
+        assert_eq!(
+            huge.map(|r| r.0),
+            Err(PoolError::TooBig {
+                needed: 101,
+                budget: 100
+            })
+        );
+        let _ = first.await.expect("join");
+        // The first job's bytes come back when it returns.
+        let mut ok = None;
+        for _ in 0..200 {
+            match pool
+                .run_sized("t", Duration::from_secs(5), 100, |_| 5)
+                .await
+            {
+                Ok((v, _)) => {
+                    ok = Some(v);
+                    break;
+                }
+                Err(PoolError::NoMemory { .. }) => {
+                    tokio::time::sleep(Duration::from_millis(10)).await
+                }
+                Err(e) => panic!("{e}"),
+            }
+        }
+        assert_eq!(ok, Some(5));
+        assert_eq!(pool.memory(), (100, 0));
     }
 
     #[tokio::test]

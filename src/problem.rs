@@ -435,7 +435,8 @@ impl From<StoreError> for ApiError {
 impl From<PoolError> for ApiError {
     fn from(e: PoolError) -> Self {
         match e {
-            PoolError::Busy { .. } => ApiError::busy(e.to_string(), 1),
+            PoolError::Busy { .. } | PoolError::NoMemory { .. } => ApiError::busy(e.to_string(), 1),
+            PoolError::TooBig { .. } => ApiError::too_large("body", e.to_string()),
             PoolError::Deadline(_) => ApiError::deadline(e.to_string()),
             PoolError::Lost => ApiError::internal(e),
         }

@@ -179,11 +179,13 @@ impl Runner {
         inputs.load(needed).await.map_err(RunError::Inputs)?;
         let limits = self.limits;
         let watch = options.watch;
+        let bytes = op.peak_bytes(&inputs);
         let (result, timing) = self
             .pool
-            .run(
+            .run_sized(
                 op.name(),
                 options.deadline,
+                bytes,
                 move |pool_control| match &watch {
                     Some(w) => {
                         let sink = |p: f64| w.report(p);

@@ -766,3 +766,51 @@ proptest! {
         let _ = decode(&s, HINTS[hint], &FUZZ_LIMITS);
     }
 }
+
+/// `declared_size` reads the size a file announces without decoding its
+/// payload: a gzipped 256³ NIfTI of zeros (a few KB on the wire) declares
+/// 16.8 MB, and the answer comes from the header alone (a truncated
+/// payload does not matter); a PNG and an NPY declare their shapes too.
+#[test]
+fn declared_sizes_come_from_headers() {
+    use std::io::Write;
+    let n = 256;
+    let zeros = ArrayData::U8(ndarray::ArrayD::zeros(ndarray::IxDyn(&[n, n, n])));
+    let nii = geodex::io::encode_nifti(&zeros, Some(&[1.0, 1.0, 1.0])).expect("nifti");
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(&nii).expect("gzip");
+    let bomb = gz.finish().expect("gzip");
+    assert!(bomb.len() < 100_000, "{} bytes", bomb.len());
+    let limits = Limits::default();
+    let declared = geodex::io::declared_size(&bomb, None, &limits).expect("probe");
+    assert_eq!(declared, Some((n * n * n, n * n * n)));
+    // Only the header is read: the first kilobyte is enough.
+    let head =
+        geodex::io::declared_size(&nii[..1024], Some(Format::Nifti), &limits).expect("probe");
+    assert_eq!(head, Some((n * n * n, n * n * n)));
+    let f = ArrayData::F64(ndarray::ArrayD::zeros(ndarray::IxDyn(&[30, 40])));
+    let npy = encode_npy(&f).expect("npy");
+    assert_eq!(
+        geodex::io::declared_size(&npy, None, &limits).expect("probe"),
+        Some((1200, 9600))
+    );
+    let mut png = Vec::new();
+    DynamicImage::ImageLuma8(ImageBuffer::new(50, 20))
+        .write_to(&mut Cursor::new(&mut png), ImageFormat::Png)
+        .expect("png");
+    assert_eq!(
+        geodex::io::declared_size(&png, None, &limits).expect("probe"),
+        Some((1000, 1000))
+    );
+    // The probe leaves normal decoding alone on this thread.
+    assert!(decode(&npy, None, &limits).is_ok());
+    // A file over the limits is refused by the probe as by the decoder.
+    let small = Limits {
+        max_cells: 100,
+        max_bytes: 800,
+    };
+    assert!(matches!(
+        geodex::io::declared_size(&npy, None, &small),
+        Err(IoError::TooLarge { .. })
+    ));
+}

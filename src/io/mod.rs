@@ -232,10 +232,62 @@ impl Default for Limits {
     }
 }
 
+thread_local! {
+    /// Set while [`declared_size`] runs a decoder on this thread.
+    static PROBING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    /// What [`Limits::check`] was asked about while probing: (cells, bytes).
+    static DECLARED: std::cell::Cell<Option<(usize, usize)>> = const { std::cell::Cell::new(None) };
+}
+
+/// Ends probing on this thread, however the decoder returns.
+struct ProbeGuard;
+
+impl Drop for ProbeGuard {
+    fn drop(&mut self) {
+        PROBING.with(|p| p.set(false));
+    }
+}
+
+/// The size an encoded array declares, `(cells, bytes)` at its stored
+/// element size, read from its header without decoding the payload: the
+/// decoder runs until its [`Limits::check`] (which every decoder calls
+/// before allocating the array) and stops there. A file that is malformed
+/// or over `limits` before that point gives the error [`decode`] would.
+/// Used to admit a decode by its memory before running it.
+///
+/// # Examples
+///
+/// ```
+/// use geodex::io::{declared_size, encode_npy, ArrayData, Limits};
+/// let a = ArrayData::F64(ndarray::ArrayD::zeros(ndarray::IxDyn(&[30, 40])));
+/// let npy = encode_npy(&a)?;
+/// assert_eq!(declared_size(&npy, None, &Limits::default())?, Some((1200, 9600)));
+/// # Ok::<(), geodex::io::IoError>(())
+/// ```
+pub fn declared_size(
+    bytes: &[u8],
+    hint: Option<Format>,
+    limits: &Limits,
+) -> Result<Option<(usize, usize)>, IoError> {
+    DECLARED.with(|d| d.set(None));
+    PROBING.with(|p| p.set(true));
+    let result = {
+        let _guard = ProbeGuard;
+        decode(bytes, hint, limits)
+    };
+    match (DECLARED.with(std::cell::Cell::take), result) {
+        (Some(size), _) => Ok(Some(size)),
+        (None, Err(e)) => Err(e),
+        (None, Ok(_)) => Ok(None),
+    }
+}
+
 impl Limits {
     /// Checks a declared shape against the limits: the number of cells and
     /// `cells × item_size` bytes (overflow counts as too large). `what`
-    /// names the thing in the error (`"NPY array"`).
+    /// names the thing in the error (`"NPY array"`). Under
+    /// [`declared_size`] the first check records the size and stops the
+    /// decoder.
     pub fn check(&self, what: &str, shape: &[usize], item_size: usize) -> Result<(), IoError> {
         let too_large = |reason: String| IoError::TooLarge {
             what: what.to_string(),
@@ -260,6 +312,10 @@ impl Limits {
                  the limit of {}",
                 self.max_bytes
             )));
+        }
+        if PROBING.with(std::cell::Cell::get) && DECLARED.with(std::cell::Cell::get).is_none() {
+            DECLARED.with(|d| d.set(Some((cells, bytes))));
+            return Err(too_large("probed: the decoder stops here".into()));
         }
         Ok(())
     }

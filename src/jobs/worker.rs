@@ -391,7 +391,12 @@ impl Jobs {
                 flags.stop(StopReason::TimeLimit);
                 Outcome::Stopped
             }
-            Err(RunError::Pool(PoolError::Busy { .. })) => Outcome::Release,
+            Err(RunError::Pool(PoolError::Busy { .. } | PoolError::NoMemory { .. })) => {
+                Outcome::Release
+            }
+            Err(RunError::Pool(e @ PoolError::TooBig { .. })) => {
+                Outcome::Failed(ApiError::from(e), "invalid")
+            }
             Err(RunError::Pool(PoolError::Lost)) => Outcome::Failed(
                 ApiError::internal(format!("the solve of job {} panicked", row.id)),
                 "panic",

@@ -97,6 +97,19 @@ pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
         self.dataset_ids()
     }
 
+    /// Its estimated peak memory in bytes, from the shapes of its loaded
+    /// inputs and of the grid a constant `cost` names, before anything is
+    /// allocated: the pool admits solves by it. Default:
+    /// [`estimate_peak_bytes`].
+    fn peak_bytes(&self, inputs: &dyn Inputs) -> u64 {
+        let constant_cells = serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.pointer("/cost/shape").cloned())
+            .and_then(|s| serde_json::from_value::<Vec<usize>>(s).ok())
+            .map_or(0, |shape| shape.iter().product::<usize>());
+        estimate_peak_bytes(&self.dataset_ids(), inputs, constant_cells)
+    }
+
     /// Runs the operation. Polls `control` for cancellation and reports progress through it.
     fn run(
         &self,
@@ -104,6 +117,48 @@ pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
         limits: &OpLimits,
         control: &Control<'_>,
     ) -> Result<OpOutput, OpError>;
+}
+
+/// Bytes a grid solve holds per cell at its peak, beyond its inputs: the
+/// distance `U` (8), the cost it solves on (8, designed or converted), the
+/// labels (4), the state and the heap index (5), heap entries on the front
+/// (16 for a front of the whole grid at worst), the outputs' NPY copies
+/// (12), and twice that margin for the operations that keep more (the
+/// gradient's adjoint, the tensor fields' six coefficients).
+pub const PEAK_BYTES_PER_CELL: u64 = 96;
+
+/// Bytes a mesh solve holds per vertex at its peak: positions, topology,
+/// the distance and its outputs, and the sparse Cholesky factor of the heat
+/// method (the largest: about 40 non-zeros per vertex on surface meshes).
+pub const PEAK_BYTES_PER_VERTEX: u64 = 1024;
+
+/// The estimate every operation starts from: for each input array its own
+/// bytes plus [`PEAK_BYTES_PER_CELL`] per cell, for each mesh
+/// [`PEAK_BYTES_PER_VERTEX`] per vertex, and `extra_cells` grid cells the
+/// request names without a dataset (a constant cost's `shape`).
+pub fn estimate_peak_bytes(
+    ids: &[(String, String)],
+    inputs: &dyn Inputs,
+    extra_cells: usize,
+) -> u64 {
+    let mut seen = std::collections::HashSet::new();
+    let mut total = (extra_cells as u64).saturating_mul(PEAK_BYTES_PER_CELL);
+    for (_, id) in ids {
+        if !seen.insert(id.as_str()) {
+            continue;
+        }
+        if let Some(a) = inputs.get(id) {
+            let cells: usize = a.array.shape().iter().product();
+            total = total
+                .saturating_add(a.array.nbytes() as u64)
+                .saturating_add((cells as u64).saturating_mul(PEAK_BYTES_PER_CELL));
+        } else if let Some(m) = inputs.mesh(id) {
+            total = total.saturating_add(
+                (m.mesh.num_vertices() as u64).saturating_mul(PEAK_BYTES_PER_VERTEX),
+            );
+        }
+    }
+    total
 }
 
 /// An [`Operation`] of any type, as the runner, the job queue and the
@@ -117,6 +172,8 @@ pub trait DynOperation: Send + Sync + std::fmt::Debug {
     fn dataset_ids(&self) -> Vec<(String, String)>;
     /// [`Operation::datasets_to_load`].
     fn datasets_to_load(&mut self, inputs: &dyn Inputs) -> Vec<(String, String)>;
+    /// [`Operation::peak_bytes`].
+    fn peak_bytes(&self, inputs: &dyn Inputs) -> u64;
     /// [`Operation::run`].
     fn run(
         &self,
@@ -143,6 +200,10 @@ impl<O: Operation + std::fmt::Debug> DynOperation for O {
 
     fn datasets_to_load(&mut self, inputs: &dyn Inputs) -> Vec<(String, String)> {
         Operation::datasets_to_load(self, inputs)
+    }
+
+    fn peak_bytes(&self, inputs: &dyn Inputs) -> u64 {
+        Operation::peak_bytes(self, inputs)
     }
 
     fn run(

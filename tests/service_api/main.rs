@@ -13,6 +13,7 @@ mod group;
 mod inverse;
 mod level_set;
 mod load;
+mod memory;
 mod mesh;
 mod openapi;
 mod paths;

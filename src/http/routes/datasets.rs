@@ -459,8 +459,11 @@ pub fn format_from_content_type(headers: &HeaderMap) -> Result<Option<Format>, A
 /// Decodes uploaded bytes on the solver pool (admitted like a solve: 503 +
 /// `Retry-After` when the pool is full, 504 past the deadline) and checks
 /// that the array is 2D or 3D. Decoding a large or compressed file takes
-/// the memory of its pixels; on the pool, at most one decode per pool thread
-/// holds it at once, instead of one per concurrent upload. `field` names the
+/// the memory of its pixels: the size its header declares is read first
+/// ([`io::declared_size`], off the async threads), and the decode is
+/// admitted by that estimate against the pool's memory budget (503 +
+/// `Retry-After` while other solves hold it, 413 beyond the whole budget),
+/// so a small compressed file cannot inflate beyond it. `field` names the
 /// input in errors.
 pub async fn decode_upload(
     state: &AppState,
@@ -478,9 +481,16 @@ pub async fn decode_upload(
         )));
     }
     let limits = state.io_limits;
+    let probe = bytes.clone();
+    let declared = tokio::task::spawn_blocking(move || io::declared_size(&probe, hint, &limits))
+        .await
+        .map_err(ApiError::internal)?
+        .map_err(|e| io_error(e, field))?;
+    // The decoded array, its stored NPY copy, and the body itself.
+    let estimate = declared.map_or(0, |(_, b)| 2 * b as u64) + bytes.len() as u64;
     let (decoded, _) = state
         .pool
-        .run("upload", state.solve_timeout, move |_| {
+        .run_sized("upload", state.solve_timeout, estimate, move |_| {
             io::decode(&bytes, hint, &limits)
         })
         .await?;
@@ -1065,9 +1075,13 @@ async fn upload_mesh(
 ) -> Result<Response, ApiError> {
     let limits = MeshLimits::default();
     // On the pool, like an array upload (see `decode_upload`).
+    // A mesh file holds at least 12 bytes per vertex (binary STL, 50 bytes
+    // per 3 vertices); decoded with its topology a vertex takes about 100:
+    // ten times the body bounds it.
+    let estimate = 10 * body.len() as u64;
     let (loaded, _) = state
         .pool
-        .run("upload", state.solve_timeout, move |_| {
+        .run_sized("upload", state.solve_timeout, estimate, move |_| {
             read_mesh(&body, Some(format), &limits)
         })
         .await?;
