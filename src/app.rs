@@ -114,6 +114,7 @@ impl Application {
             limits: http::server::ServerLimits {
                 header_timeout: secs(settings.header_timeout_secs),
                 body_timeout: secs(settings.body_timeout_secs),
+                min_body_rate: settings.min_body_rate,
                 max_connections: settings.max_connections.max(1),
             },
             grace: Duration::from_secs(settings.shutdown_grace_secs),

@@ -37,6 +37,10 @@ pub struct ServeArgs {
     /// request is answered 408 and the connection closed.
     #[arg(long, env = "GEODEX_BODY_TIMEOUT_SECS", default_value_t = 30.0)]
     pub body_timeout_secs: f64,
+    /// Slowest request body accepted, in bytes per second, after a first
+    /// `--body-timeout-secs` of grace (0: no minimum); slower gets 408.
+    #[arg(long, env = "GEODEX_MIN_BODY_RATE", default_value_t = 1024)]
+    pub min_body_rate: u64,
     /// Open connections at most. At the cap a new connection evicts the
     /// oldest one with no request in progress, or is answered 503 when
     /// every connection is busy. Lowered to fit the open-file limit.
@@ -157,6 +161,7 @@ impl Default for ServeArgs {
             max_body_bytes: 256 << 20,
             header_timeout_secs: 10.0,
             body_timeout_secs: 30.0,
+            min_body_rate: 1024,
             max_connections: 4096,
             solve_memory_bytes: None,
             max_cells: 512 * 512 * 512,

@@ -50,6 +50,10 @@ pub struct ServerLimits {
     pub header_timeout: Duration,
     /// Longest pause within a request body.
     pub body_timeout: Duration,
+    /// Slowest body accepted, in bytes per second, after a first
+    /// `body_timeout` of grace (0: no minimum): a body must have sent
+    /// `min_body_rate × (elapsed − body_timeout)` bytes at every moment.
+    pub min_body_rate: u64,
     /// Open connections at most (lowered to fit the open-file limit).
     pub max_connections: usize,
 }
@@ -59,6 +63,7 @@ impl Default for ServerLimits {
         Self {
             header_timeout: Duration::from_secs(10),
             body_timeout: Duration::from_secs(30),
+            min_body_rate: 0,
             max_connections: 4096,
         }
     }
@@ -68,6 +73,24 @@ impl Default for ServerLimits {
 #[derive(Debug, Clone, Copy, thiserror::Error)]
 #[error("the request body sent nothing for {0:?}")]
 pub struct BodyStalled(pub Duration);
+
+/// The error of a request body that arrives more slowly than the minimum
+/// rate (a client trickling bytes to hold its connection).
+#[derive(Debug, Clone, Copy, thiserror::Error)]
+#[error(
+    "the request body sent {received} bytes in {seconds:.1} s, slower than the minimum of \
+     {min_rate} bytes per second after the first {grace:?}"
+)]
+pub struct BodyTooSlow {
+    /// Bytes received.
+    pub received: u64,
+    /// Seconds since the body was first read.
+    pub seconds: f64,
+    /// The minimum rate.
+    pub min_rate: u64,
+    /// The grace period.
+    pub grace: Duration,
+}
 
 /// The [`BodyStalled`] somewhere in `e`'s chain of sources, if any.
 pub fn stalled_in<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a BodyStalled> {
@@ -81,9 +104,27 @@ pub fn stalled_in<'a>(e: &'a (dyn std::error::Error + 'static)) -> Option<&'a Bo
     None
 }
 
-/// The 408 for a body read that failed because the body stalled (a
-/// [`BodyStalled`] in `e`'s sources), for every extractor that reads a body.
+/// The [`BodyTooSlow`] somewhere in `e`'s chain of sources, if any.
+fn too_slow_in(e: &(dyn std::error::Error + 'static)) -> Option<BodyTooSlow> {
+    let mut cur = Some(e);
+    while let Some(err) = cur {
+        if let Some(s) = err.downcast_ref::<BodyTooSlow>() {
+            return Some(*s);
+        }
+        cur = err.source();
+    }
+    None
+}
+
+/// The 408 for a body read that failed because the body stalled or came
+/// too slowly (a [`BodyStalled`] or [`BodyTooSlow`] in `e`'s sources), for
+/// every extractor that reads a body.
 pub fn stalled_problem(e: &(dyn std::error::Error + 'static)) -> Option<crate::problem::ApiError> {
+    if let Some(slow) = too_slow_in(e) {
+        return Some(crate::problem::ApiError::request_timeout(format!(
+            "{slow}; send the body faster (the server's --min-body-rate)"
+        )));
+    }
     stalled_in(e).map(|stalled| {
         crate::problem::ApiError::request_timeout(format!(
             "{stalled}; send the body without pauses that long (the server's --body-timeout-secs)"
@@ -320,11 +361,12 @@ impl Connection {
         let router = self.router.clone();
         let busy = Arc::clone(&self.busy);
         let body_timeout = self.limits.body_timeout;
+        let min_rate = self.limits.min_body_rate;
         let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
             let guard = Busy::enter(&busy);
             let router = router.clone();
             async move {
-                let req = req.map(|b| Body::new(Stalling::new(b, body_timeout)));
+                let req = req.map(|b| Body::new(Stalling::new(b, body_timeout, min_rate)));
                 let res = router.oneshot(req).await;
                 res.map(|r| {
                     r.map(|b| {
@@ -406,19 +448,45 @@ impl HttpBody for Guarded {
 
 /// A request body that fails with [`BodyStalled`] when no frame arrives
 /// for `limit` (the timer starts when the body is first polled and restarts
-/// at every frame).
+/// at every frame), and with [`BodyTooSlow`] when, `limit` after the first
+/// poll, fewer than `min_rate` bytes per second of the time since arrived.
 struct Stalling {
     inner: Incoming,
     limit: Duration,
+    min_rate: u64,
+    started: Option<tokio::time::Instant>,
+    received: u64,
     timer: Option<Pin<Box<tokio::time::Sleep>>>,
 }
 
 impl Stalling {
-    fn new(inner: Incoming, limit: Duration) -> Self {
+    fn new(inner: Incoming, limit: Duration, min_rate: u64) -> Self {
         Self {
             inner,
             limit,
+            min_rate,
+            started: None,
+            received: 0,
             timer: None,
+        }
+    }
+
+    /// The moment the bytes received so far stop being enough: the grace
+    /// period plus `received / min_rate` after the start (never, with no
+    /// minimum).
+    fn rate_deadline(&self, started: tokio::time::Instant) -> Option<tokio::time::Instant> {
+        (self.min_rate > 0).then(|| {
+            let earned = Duration::from_secs_f64(self.received as f64 / self.min_rate as f64);
+            started + self.limit + earned
+        })
+    }
+
+    fn too_slow(&self, started: tokio::time::Instant) -> BodyTooSlow {
+        BodyTooSlow {
+            received: self.received,
+            seconds: started.elapsed().as_secs_f64(),
+            min_rate: self.min_rate,
+            grace: self.limit,
         }
     }
 }
@@ -432,18 +500,41 @@ impl HttpBody for Stalling {
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Bytes>, axum::BoxError>>> {
         let this = &mut *self;
+        let started = *this.started.get_or_insert_with(tokio::time::Instant::now);
         match Pin::new(&mut this.inner).poll_frame(cx) {
             Poll::Ready(frame) => {
                 this.timer = None;
+                if let Some(Ok(f)) = &frame {
+                    if let Some(data) = f.data_ref() {
+                        this.received += data.len() as u64;
+                    }
+                    let late = this
+                        .rate_deadline(started)
+                        .is_some_and(|d| tokio::time::Instant::now() > d);
+                    if late && !this.inner.is_end_stream() {
+                        return Poll::Ready(Some(Err(Box::new(this.too_slow(started)))));
+                    }
+                }
                 Poll::Ready(frame.map(|f| f.map_err(Into::into)))
             }
             Poll::Pending => {
-                let limit = this.limit;
-                let timer = this
-                    .timer
-                    .get_or_insert_with(|| Box::pin(tokio::time::sleep(limit)));
+                let stall = tokio::time::Instant::now() + this.limit;
+                let rate = this.rate_deadline(started);
+                let timer = this.timer.get_or_insert_with(|| {
+                    Box::pin(tokio::time::sleep_until(
+                        rate.map_or(stall, |r| r.min(stall)),
+                    ))
+                });
                 match timer.as_mut().poll(cx) {
-                    Poll::Ready(()) => Poll::Ready(Some(Err(Box::new(BodyStalled(limit))))),
+                    Poll::Ready(()) => {
+                        let slow = rate.is_some_and(|r| tokio::time::Instant::now() >= r);
+                        let e: axum::BoxError = if slow {
+                            Box::new(this.too_slow(started))
+                        } else {
+                            Box::new(BodyStalled(this.limit))
+                        };
+                        Poll::Ready(Some(Err(e)))
+                    }
                     Poll::Pending => Poll::Pending,
                 }
             }

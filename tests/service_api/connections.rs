@@ -80,6 +80,49 @@ async fn a_stalled_body_gets_408() {
     );
 }
 
+/// A client that trickles its body (10 bytes every 0.2 s, never pausing as
+/// long as the body timeout) is cut off once it falls below the minimum
+/// rate after the grace period, instead of holding its slot for the hours
+/// its 100 KB would take.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_trickled_body_gets_408() {
+    let app = spawn(|s| {
+        s.body_timeout_secs = 0.5;
+        s.min_body_rate = 1000;
+    })
+    .await;
+    let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    let started = Instant::now();
+    s.write_all(
+        b"POST /v1/datasets HTTP/1.1\r\nHost: x\r\nContent-Type: application/x-npy\r\n\
+          Content-Length: 100000\r\n\r\n",
+    )
+    .await
+    .expect("send");
+    let trickle = async {
+        loop {
+            if s.write_all(b"0123456789").await.is_err() {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
+            if started.elapsed() > Duration::from_secs(10) {
+                break;
+            }
+        }
+    };
+    let _ = tokio::time::timeout(Duration::from_millis(1500), trickle).await;
+    let (bytes, _) = read_all(&mut s, Duration::from_secs(10)).await;
+    let text = String::from_utf8_lossy(&bytes);
+    assert_eq!(status_of(&bytes), Some(408), "{text}");
+    assert!(text.contains("min-body-rate"), "{text}");
+    // Cut off within a second of the grace period's end.
+    assert!(
+        started.elapsed() < Duration::from_secs(3),
+        "{:?}",
+        started.elapsed()
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn slow_headers_and_silent_connections_are_closed() {
     let app = spawn(|s| s.header_timeout_secs = 0.5).await;
@@ -188,6 +231,13 @@ async fn uploads_are_admitted_by_the_pool() {
     // Admitted when the pool is free.
     let id = app.upload(&small).await;
     assert!(id.starts_with("ds_"));
+    // The upload's pool slot is given back just after its answer is sent:
+    // wait for it, so that the full pool seen below is the solve's.
+    let t = Instant::now();
+    while app.get("/readyz").await.status() != 200 {
+        assert!(t.elapsed() < Duration::from_secs(10), "the upload's slot");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
     // A segmentation, not a distance: `load.rs` reads the process-wide
     // metrics of cancelled grid.distance solves.
     let slow = serde_json::json!({"cost": {"constant": 1.0, "shape": [3000, 3000]},
