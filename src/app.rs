@@ -63,6 +63,7 @@ impl Application {
             quota_bytes: settings.storage_quota_bytes,
             ttl: Duration::from_secs(settings.dataset_ttl_secs),
             cache_bytes: settings.cache_bytes,
+            path_cache_bytes: settings.path_cache_bytes,
             limits: io_limits(&settings),
         })
         .with_context(|| format!("opening the data directory {}", settings.data_dir.display()))?;
@@ -94,9 +95,6 @@ impl Application {
             solve_timeout: settings.request_timeout(),
             draining: Arc::new(AtomicBool::new(false)),
             metrics,
-            path_cache: Arc::new(crate::ops::grid_paths::DistanceCache::new(
-                settings.path_cache_bytes,
-            )),
 
             collections: Arc::new(crate::collections::Collections::new(jobs.db().clone())),
             jobs: Arc::new(jobs),

@@ -62,11 +62,14 @@ pub struct ServeArgs {
     /// swept periodically.
     #[arg(long, env = "GEODEX_DATASET_TTL_SECS", default_value_t = 24 * 3600)]
     pub dataset_ttl_secs: u64,
-    /// Bytes of decoded arrays kept in memory for repeated solves.
+    /// Bytes kept in memory between requests, in one budget: decoded
+    /// arrays, meshes, heat factorisations, and the designed costs and
+    /// distance maps of minimal-path requests.
     #[arg(long, env = "GEODEX_CACHE_BYTES", default_value_t = 1 << 30)]
     pub cache_bytes: usize,
-    /// Bytes of designed costs and distance maps kept for later minimal-path
-    /// requests (`POST /v1/grid/paths`; 8 bytes per cell each); 0 disables it.
+    /// Of `--cache-bytes`, the most for designed costs and distance maps kept
+    /// for later minimal-path requests (`POST /v1/grid/paths`; 8 bytes per
+    /// cell each); 0 keeps none.
     #[arg(long, env = "GEODEX_PATH_CACHE_BYTES", default_value_t = 512 << 20)]
     pub path_cache_bytes: usize,
     /// Allowed CORS origins, comma separated; `*` allows any. Default: none.

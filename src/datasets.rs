@@ -216,9 +216,13 @@ pub struct StoreConfig {
     pub quota_bytes: u64,
     /// Lifetime of a dataset.
     pub ttl: Duration,
-    /// Largest total size of what is kept decoded in memory: arrays,
-    /// meshes with their topology, heat factorisations (one budget).
+    /// Largest total size of what is kept in memory between requests:
+    /// decoded arrays, meshes with their topology, heat factorisations,
+    /// designed costs and distance maps (one budget).
     pub cache_bytes: usize,
+    /// Of `cache_bytes`, the most for designed costs and distance maps (0:
+    /// none are kept).
+    pub path_cache_bytes: usize,
     /// Limits applied when reading stored files back.
     pub limits: Limits,
 }
@@ -313,7 +317,8 @@ impl DatasetStore {
         Ok(Self {
             root,
             index: Mutex::new(index),
-            memory: cache::MemoryCache::new(config.cache_bytes),
+            memory: cache::MemoryCache::new(config.cache_bytes)
+                .with_path_share(config.path_cache_bytes),
             config,
         })
     }
@@ -556,9 +561,15 @@ impl DatasetStore {
         );
     }
 
-    /// Bytes of decoded arrays, meshes and factorisations held in memory.
+    /// Bytes of decoded arrays, meshes, factorisations, costs and maps
+    /// held in memory.
     pub fn cached_bytes(&self) -> usize {
         self.memory.bytes()
+    }
+
+    /// The one memory budget of everything kept between requests.
+    pub fn memory_cache(&self) -> &cache::MemoryCache {
+        &self.memory
     }
 
     /// Deletes a dataset (blocking).

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use super::{DatasetStore, StoreError};
 use crate::numerics::mesh::{HeatOptions, HeatSolver, MeshSolveError};
-use crate::ops::grid_paths::DistanceCache;
+use crate::ops::grid_paths::MapCache;
 use crate::ops::spec::mesh::MeshInput;
 use crate::ops::{InputArray, Inputs};
 
@@ -50,7 +50,6 @@ pub struct StoreInputs {
     /// Meshes by dataset id.
     pub meshes: HashMap<String, Arc<MeshInput>>,
     store: Arc<DatasetStore>,
-    distance_cache: Option<Arc<DistanceCache>>,
     /// Whose datasets these may be: another tenant's id is not found.
     tenant: String,
 }
@@ -62,7 +61,6 @@ impl StoreInputs {
             arrays: HashMap::new(),
             meshes: HashMap::new(),
             store,
-            distance_cache: None,
             tenant: String::new(),
         }
     }
@@ -99,13 +97,6 @@ impl StoreInputs {
             Some((field, id)) => Err(InputError::NotFound { field, id }),
             None => Ok(()),
         }
-    }
-
-    /// The same inputs offering `cache` to operations that keep designed
-    /// costs and distance maps between requests (`grid.paths`).
-    pub fn with_distance_cache(mut self, cache: Arc<DistanceCache>) -> Self {
-        self.distance_cache = Some(cache);
-        self
     }
 
     /// Loads every `(field, id)` not already present: a field named `mesh`
@@ -165,7 +156,8 @@ impl Inputs for StoreInputs {
         self.store.heat_solver(id, options, build)
     }
 
-    fn distance_cache(&self) -> Option<&DistanceCache> {
-        self.distance_cache.as_deref()
+    /// The store's one memory budget keeps the costs and maps.
+    fn distance_cache(&self) -> Option<&dyn MapCache> {
+        Some(self.store.memory_cache())
     }
 }

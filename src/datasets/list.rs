@@ -63,6 +63,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let store = Arc::new(
             DatasetStore::open(StoreConfig {
+                path_cache_bytes: 0,
                 data_dir: dir.path().to_path_buf(),
                 quota_bytes: 1 << 30,
                 ttl: std::time::Duration::from_secs(3600),

@@ -53,8 +53,6 @@ pub struct AppState {
     pub draining: Arc<AtomicBool>,
     /// The Prometheus registry.
     pub metrics: PrometheusHandle,
-    /// Designed costs and distance maps kept for later minimal-path requests.
-    pub path_cache: Arc<crate::ops::grid_paths::DistanceCache>,
 
     /// Runs every operation (on `pool`, against `op_limits`).
     pub runner: crate::runner::Runner,

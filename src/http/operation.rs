@@ -31,9 +31,8 @@ pub async fn run(
     op: Box<dyn DynOperation>,
     uploads: HashMap<String, InputArray>,
 ) -> Result<Ran, ApiError> {
-    let mut inputs = StoreInputs::new(Arc::clone(&state.store))
-        .with_distance_cache(Arc::clone(&state.path_cache))
-        .for_tenant(super::auth::caller().tenant());
+    let mut inputs =
+        StoreInputs::new(Arc::clone(&state.store)).for_tenant(super::auth::caller().tenant());
     inputs.arrays.extend(uploads);
     let options = RunOptions::deadline(state.solve_timeout);
     Ok(state.runner.run(op, inputs, options).await?)

@@ -323,7 +323,7 @@ pub trait Inputs {
 
     /// The caller's cache of designed costs and distance maps for
     /// interactive paths, if it keeps one. Default: none.
-    fn distance_cache(&self) -> Option<&grid_paths::DistanceCache> {
+    fn distance_cache(&self) -> Option<&dyn grid_paths::MapCache> {
         None
     }
 }

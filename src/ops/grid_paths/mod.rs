@@ -34,7 +34,7 @@
 mod render;
 mod solve;
 
-pub use super::spec::map_cache::{CachedCost, CachedMap, DistanceCache};
+pub use super::spec::map_cache::{CachedCost, CachedMap, DistanceCache, MapCache};
 pub use solve::execute;
 
 use std::sync::Arc;
@@ -749,7 +749,7 @@ mod tests {
         fn get(&self, id: &str) -> Option<InputArray> {
             self.0.get(id).cloned()
         }
-        fn distance_cache(&self) -> Option<&DistanceCache> {
+        fn distance_cache(&self) -> Option<&dyn MapCache> {
             Some(&self.1)
         }
     }

@@ -13,7 +13,7 @@ use crate::numerics::paths::{
 use crate::numerics::{self, Control, EikonalProblem, Source, StopRules};
 use crate::ops::spec::cost::resolve_cost;
 use crate::ops::spec::errors::eikonal_error;
-use crate::ops::spec::map_cache::{CachedCost, CachedMap, DistanceCache};
+use crate::ops::spec::map_cache::{CachedCost, CachedMap, MapCache};
 use crate::ops::spec::scheme::{stop_name, SourceSpec};
 use crate::ops::spec::tensor::{resolve_tensor, solve_tensor, TensorSolveSpec, TensorSpec};
 use crate::ops::{Inputs, OpError, OpLimits};
@@ -42,7 +42,7 @@ pub fn execute(
     inputs: &dyn Inputs,
     limits: &OpLimits,
     control: &Control<'_>,
-    cache: Option<&DistanceCache>,
+    cache: Option<&dyn MapCache>,
     cost: Option<Arc<CachedCost>>,
 ) -> Result<GridPathsResult, OpError> {
     req.validate(limits)?;

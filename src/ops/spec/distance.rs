@@ -17,7 +17,7 @@ use utoipa::ToSchema;
 use super::cost::{resolve_cost, CostSpec};
 use super::defaults::{default_order, default_true};
 use super::errors::eikonal_error;
-use super::map_cache::{cost_key, map_key, CachedCost, CachedMap, DistanceCache};
+use super::map_cache::{cost_key, map_key, CachedCost, CachedMap, MapCache};
 use super::scheme::{
     check_metric_choice, level_set_error, metric_dataset_ids, phi_of, resolve_sources,
     source_dataset_ids, stop_name, ConnectivitySpec, MethodSpec, OutputSpec, SourceSpec, StopSpec,
@@ -357,7 +357,7 @@ pub fn execute_sharing(
 /// `cache` (see [`execute_sharing`]); other solves are left out (a partial
 /// map, cells, masks or level sets as sources, a tensor metric).
 fn share_map(
-    cache: &DistanceCache,
+    cache: &dyn MapCache,
     req: &GridDistanceRequest,
     spacing: &[f64],
     problem: &EikonalProblem<'_>,

@@ -84,6 +84,38 @@ pub struct CachedMap {
     pub stop: String,
 }
 
+/// Where designed costs and distance maps are kept between requests: the
+/// service's one memory budget (`datasets::cache::MemoryCache`), or a
+/// [`DistanceCache`] of its own (the command line, tests).
+pub trait MapCache: Send + Sync {
+    /// The cost under `key`, if kept (marked as just used).
+    fn cost(&self, key: &str) -> Option<Arc<CachedCost>>;
+    /// The map under `key`, if kept (marked as just used).
+    fn map(&self, key: &str) -> Option<Arc<CachedMap>>;
+    /// Keeps a cost (8 bytes per cell), if the budget allows.
+    fn put_cost(&self, key: String, cost: Arc<CachedCost>);
+    /// Keeps a map (8 bytes per cell), if the budget allows.
+    fn put_map(&self, key: String, map: Arc<CachedMap>);
+}
+
+impl MapCache for DistanceCache {
+    fn cost(&self, key: &str) -> Option<Arc<CachedCost>> {
+        DistanceCache::cost(self, key)
+    }
+
+    fn map(&self, key: &str) -> Option<Arc<CachedMap>> {
+        DistanceCache::map(self, key)
+    }
+
+    fn put_cost(&self, key: String, cost: Arc<CachedCost>) {
+        DistanceCache::put_cost(self, key, cost);
+    }
+
+    fn put_map(&self, key: String, map: Arc<CachedMap>) {
+        DistanceCache::put_map(self, key, map);
+    }
+}
+
 #[derive(Debug, Default)]
 struct CacheInner {
     costs: HashMap<String, (Arc<CachedCost>, u64)>,
