@@ -21,6 +21,11 @@ Attacks and bounds:
   png-bomb       60 concurrent uploads of a 1.1 MB PNG carrying an iCCP chunk
                  that inflates to 1 GiB: every answer 201, 413 or 503, and the
                  server's peak RSS stays under 1 GiB.
+  nifti-bomb     200 concurrent uploads of a 16 KB .nii.gz holding 256^3
+                 voxels (16.8 MB each), 4 pool threads admitting 400 by count
+                 and --solve-memory-bytes 150 MB: every answer 201, 413 or
+                 503 with Retry-After, and the peak RSS above idle under the
+                 budget + 64 MB. Run again without the budget, for the figure.
   frozen-mesh    a mesh with faces 1e-14 across in a unit mesh (the class of
                  input that froze the exact solver): 422 at upload naming the
                  problem; an exact sampling that would run for minutes: 504
@@ -58,13 +63,13 @@ def free_port():
 
 
 class Server:
-    def __init__(self, binary, *extra):
+    def __init__(self, binary, *extra, threads=1):
         self.dir = tempfile.mkdtemp(prefix="geodex-hostile-")
         self.port = free_port()
         self.log = open(os.path.join(self.dir, "serve.log"), "wb")
         self.proc = subprocess.Popen(
             [binary, "serve", "--addr", f"127.0.0.1:{self.port}", "--data-dir",
-             os.path.join(self.dir, "data"), "--pool-threads", "1", *extra],
+             os.path.join(self.dir, "data"), "--pool-threads", str(threads), *extra],
             stdout=self.log, stderr=subprocess.STDOUT)
         for _ in range(200):
             try:
@@ -279,6 +284,73 @@ def png_bomb(binary, n=60):
         s.stop()
 
 
+def nifti_bomb_bytes(n=256):
+    """A gzipped NIfTI-1 volume of n^3 zero bytes: ~20 KB that inflate to n^3."""
+    import gzip
+    hdr = bytearray(348)
+    struct.pack_into("<i", hdr, 0, 348)
+    struct.pack_into("<8h", hdr, 40, 3, n, n, n, 1, 1, 1, 1)
+    struct.pack_into("<hh", hdr, 70, 2, 8)  # datatype u8, bitpix 8
+    struct.pack_into("<8f", hdr, 76, 1, 1, 1, 1, 1, 1, 1, 1)
+    struct.pack_into("<f", hdr, 108, 352.0)  # vox_offset
+    hdr[344:348] = b"n+1\0"
+    return gzip.compress(bytes(hdr) + b"\0" * 4 + b"\0" * (n * n * n), 9)
+
+
+def nifti_bomb(binary, n=200, budget=150_000_000):
+    """n concurrent uploads of a gzipped 256^3 NIfTI (16.8 MB decoded each)
+    on four pool threads admitting 400 at once by count: only the memory
+    budget keeps the decodes from running together. Run once with the budget
+    and once without (a budget of 100 GB), for the figure without it."""
+    bomb = nifti_bomb_bytes()
+    peaks = {}
+    for label, mem in (("budget", budget), ("no budget", 100_000_000_000)):
+        s = Server(binary, "--queue-capacity", "400", "--solve-memory-bytes", str(mem),
+                   "--storage-quota-bytes", str(4 << 30), threads=4)
+        try:
+            time.sleep(0.5)
+            idle = s.rss_mb()
+            statuses = []
+            lock = threading.Lock()
+
+            def upload():
+                c = http.client.HTTPConnection("127.0.0.1", s.port, timeout=120)
+                try:
+                    c.request("POST", "/v1/datasets", body=bomb,
+                              headers={"content-type": "application/gzip"})
+                    r = c.getresponse()
+                    r.read()
+                    st = r.status
+                    if st == 503 and r.getheader("retry-after") is None:
+                        st = "503 without Retry-After"
+                except OSError as e:
+                    st = f"error {e}"
+                finally:
+                    c.close()
+                with lock:
+                    statuses.append(st)
+
+            threads = [threading.Thread(target=upload) for _ in range(n)]
+            t0 = time.perf_counter()
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            dt = time.perf_counter() - t0
+            peak = s.hwm_mb()
+            peaks[label] = peak - idle
+            counts = {st: statuses.count(st) for st in set(statuses)}
+            figures = (f"{label}: {n} concurrent {len(bomb) / 1e3:.0f} KB .nii.gz (256^3 inside) "
+                       f"in {dt:.1f} s: statuses {counts}, RSS {idle:.0f} MB idle, peak {peak:.0f} MB")
+            if label == "budget":
+                check("nifti-bomb", all(st in (201, 413, 503) for st in statuses)
+                      and peak - idle < budget / 1e6 + 64, figures)
+            else:
+                print(f"     {figures}")
+        finally:
+            s.stop()
+
+
 def grid_obj(n, jitter=0.3, seed=5):
     """A jittered n x n vertex grid of the unit square, as OBJ text."""
     state = seed
@@ -343,6 +415,7 @@ def main():
         "stalled-body": lambda: stalled_body(a.bin),
         "frozen-mesh": lambda: frozen_mesh(a.bin),
         "png-bomb": lambda: png_bomb(a.bin),
+        "nifti-bomb": lambda: nifti_bomb(a.bin),
         "slowloris": lambda: slowloris(a.bin, a.slow),
     }
     for name, run in attacks.items():
