@@ -253,28 +253,42 @@ def png_bomb_bytes():
             + png_chunk(b"IDAT", zlib.compress(raw)) + png_chunk(b"IEND", b""))
 
 
+def storm(server, body, ctype, n):
+    """n concurrent uploads of `body`; returns (statuses, seconds). A 503
+    without Retry-After is reported as such."""
+    statuses = []
+    lock = threading.Lock()
+
+    def upload():
+        c = http.client.HTTPConnection("127.0.0.1", server.port, timeout=120)
+        try:
+            c.request("POST", "/v1/datasets", body=body, headers={"content-type": ctype})
+            r = c.getresponse()
+            r.read()
+            st = r.status
+            if st == 503 and r.getheader("retry-after") is None:
+                st = "503 without Retry-After"
+        except OSError as e:
+            st = f"error {e}"
+        finally:
+            c.close()
+        with lock:
+            statuses.append(st)
+
+    threads = [threading.Thread(target=upload) for _ in range(n)]
+    t0 = time.perf_counter()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return statuses, time.perf_counter() - t0
+
+
 def png_bomb(binary, n=60):
     bomb = png_bomb_bytes()
     s = Server(binary)
     try:
-        statuses = []
-        lock = threading.Lock()
-
-        def upload():
-            try:
-                st, _ = s.post("/v1/datasets", bomb, "image/png", timeout=60)
-            except OSError as e:
-                st = f"error {e}"
-            with lock:
-                statuses.append(st)
-
-        threads = [threading.Thread(target=upload) for _ in range(n)]
-        t0 = time.perf_counter()
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        dt = time.perf_counter() - t0
+        statuses, dt = storm(s, bomb, "image/png", n)
         peak = s.hwm_mb()
         counts = {st: statuses.count(st) for st in set(statuses)}
         check("png-bomb", all(st in (201, 413, 503) for st in statuses) and peak < 1024,
@@ -303,42 +317,14 @@ def nifti_bomb(binary, n=200, budget=150_000_000):
     budget keeps the decodes from running together. Run once with the budget
     and once without (a budget of 100 GB), for the figure without it."""
     bomb = nifti_bomb_bytes()
-    peaks = {}
     for label, mem in (("budget", budget), ("no budget", 100_000_000_000)):
         s = Server(binary, "--queue-capacity", "400", "--solve-memory-bytes", str(mem),
                    "--storage-quota-bytes", str(4 << 30), threads=4)
         try:
             time.sleep(0.5)
             idle = s.rss_mb()
-            statuses = []
-            lock = threading.Lock()
-
-            def upload():
-                c = http.client.HTTPConnection("127.0.0.1", s.port, timeout=120)
-                try:
-                    c.request("POST", "/v1/datasets", body=bomb,
-                              headers={"content-type": "application/gzip"})
-                    r = c.getresponse()
-                    r.read()
-                    st = r.status
-                    if st == 503 and r.getheader("retry-after") is None:
-                        st = "503 without Retry-After"
-                except OSError as e:
-                    st = f"error {e}"
-                finally:
-                    c.close()
-                with lock:
-                    statuses.append(st)
-
-            threads = [threading.Thread(target=upload) for _ in range(n)]
-            t0 = time.perf_counter()
-            for t in threads:
-                t.start()
-            for t in threads:
-                t.join()
-            dt = time.perf_counter() - t0
+            statuses, dt = storm(s, bomb, "application/gzip", n)
             peak = s.hwm_mb()
-            peaks[label] = peak - idle
             counts = {st: statuses.count(st) for st in set(statuses)}
             figures = (f"{label}: {n} concurrent {len(bomb) / 1e3:.0f} KB .nii.gz (256^3 inside) "
                        f"in {dt:.1f} s: statuses {counts}, RSS {idle:.0f} MB idle, peak {peak:.0f} MB")
