@@ -29,6 +29,7 @@ use sha2::{Digest, Sha256};
 use sqlx::Row;
 
 use crate::datasets::Owner;
+use crate::jobs::db::on_pool;
 use crate::jobs::{DbError, JobDb};
 
 /// How long a verified key is trusted without asking the database again: a
@@ -186,15 +187,6 @@ fn random_hex() -> String {
     out.push_str(&strip(&b));
     out.truncate(32);
     out
-}
-
-macro_rules! on_pool {
-    ($db:expr, $p:ident => $body:expr) => {
-        match $db {
-            JobDb::Sqlite($p) => $body,
-            JobDb::Postgres($p) => $body,
-        }
-    };
 }
 
 const KEY_COLUMNS: &str =

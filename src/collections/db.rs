@@ -5,6 +5,7 @@
 
 use sqlx::Row;
 
+use crate::jobs::db::on_pool;
 use crate::jobs::{DbError, JobDb};
 
 /// One row of `geodex_collections`, with its shape count.
@@ -47,16 +48,6 @@ pub struct ShapeRow {
     pub vertices: i64,
     /// ms since the epoch.
     pub created_at: i64,
-}
-
-/// Runs the same code against whichever pool this is.
-macro_rules! on_pool {
-    ($db:expr, $p:ident => $body:expr) => {
-        match $db {
-            JobDb::Sqlite($p) => $body,
-            JobDb::Postgres($p) => $body,
-        }
-    };
 }
 
 const COLLECTION: &str =

@@ -237,15 +237,18 @@ macro_rules! decode_row {
     }};
 }
 
-/// Runs the same code against whichever pool this is.
+/// Runs the same code against whichever pool this is: `$body` is written
+/// once and compiled for each engine (the jobs, the collections and the
+/// API keys all share this database).
 macro_rules! on_pool {
-    ($self:expr, $p:ident => $body:expr) => {
-        match $self {
-            JobDb::Sqlite($p) => $body,
-            JobDb::Postgres($p) => $body,
+    ($db:expr, $p:ident => $body:expr) => {
+        match $db {
+            $crate::jobs::db::JobDb::Sqlite($p) => $body,
+            $crate::jobs::db::JobDb::Postgres($p) => $body,
         }
     };
 }
+pub(crate) use on_pool;
 
 /// The job table on one engine.
 #[derive(Debug, Clone)]
