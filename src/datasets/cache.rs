@@ -256,6 +256,11 @@ impl MemoryCache {
         }
     }
 
+    /// The byte budget every entry counts against.
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+
     /// Bytes accounted now.
     pub fn bytes(&self) -> usize {
         lock(&self.inner).bytes

@@ -53,7 +53,15 @@ async fn solves_and_uploads_are_admitted_by_their_estimated_memory() {
         .await
         .expect("send");
     problem(res, 413).await;
-    // Nothing stays held.
+    // Nothing stays held, and `/readyz` (auth off: every figure shown)
+    // reports the budget and what is held against it.
     let ready: serde_json::Value = app.get("/readyz").await.json().await.expect("json");
     assert_eq!(ready["status"], "ready");
+    assert_eq!(ready["solve_memory_budget_bytes"], 4 << 20, "{ready}");
+    assert_eq!(ready["solve_memory_held_bytes"], 0, "{ready}");
+    assert!(
+        ready["cache_budget_bytes"].as_u64().is_some_and(|b| b > 0),
+        "{ready}"
+    );
+    assert!(ready["cache_bytes"].as_u64().is_some(), "{ready}");
 }

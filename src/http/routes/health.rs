@@ -41,6 +41,20 @@ pub struct Ready {
     /// Storage quota in bytes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub storage_quota_bytes: Option<u64>,
+    /// The solves' and uploads' memory budget in bytes (`--solve-memory-bytes`):
+    /// admission is by estimated peak memory against it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solve_memory_budget_bytes: Option<u64>,
+    /// Estimated peak bytes of the solves and decodes admitted now.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solve_memory_held_bytes: Option<u64>,
+    /// The in-memory cache's budget in bytes (`--cache-bytes`): decoded
+    /// arrays and meshes, heat factorisations, designed costs and distance maps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cache_budget_bytes: Option<u64>,
+    /// Bytes the cache holds now.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cache_bytes: Option<u64>,
 }
 
 /// Liveness: the process answers. Instant; never touches the pool or storage.
@@ -66,11 +80,13 @@ pub async fn healthz() -> Json<Health> {
     path = "/readyz",
     tag = "operations",
     summary = "Readiness probe",
-    description = "Answers 200 when the solver pool can admit a solve and the dataset storage is usable (with the pool's and the storage's figures when auth is off or the key is an admin's), and 503 while the service drains after SIGTERM, when storage is unusable, or while every admission slot of the pool is taken (a long or stuck solve: new work would be refused).",
+    description = "Answers 200 when the solver pool can admit a solve and the dataset storage is usable (with the pool's, the storage's and the memory budgets' figures when auth is off or the key is an admin's), and 503 while the service drains after SIGTERM, when storage is unusable, or while every admission slot of the pool is taken (a long or stuck solve: new work would be refused).",
     responses(
         (status = 200, description = "Ready to take requests.", body = Ready, example = json!({
             "status": "ready", "pool_threads": 8, "pool_capacity": 16, "queued": 0, "running": 1,
-            "storage_used_bytes": 1048576, "storage_quota_bytes": 8589934592u64
+            "storage_used_bytes": 1048576, "storage_quota_bytes": 8589934592u64,
+            "solve_memory_budget_bytes": 25769803776u64, "solve_memory_held_bytes": 402653184,
+            "cache_budget_bytes": 2147483648u64, "cache_bytes": 16777216
         })),
         (status = 500, response = crate::http::openapi::InternalError),
         (status = 503, response = crate::http::openapi::Busy),
@@ -112,9 +128,15 @@ pub async fn readyz(State(state): State<AppState>) -> Result<Json<Ready>, ApiErr
             running: None,
             storage_used_bytes: None,
             storage_quota_bytes: None,
+            solve_memory_budget_bytes: None,
+            solve_memory_held_bytes: None,
+            cache_budget_bytes: None,
+            cache_bytes: None,
         }));
     }
     let (used, quota) = state.store.usage();
+    let (memory_budget, memory_held) = state.pool.memory();
+    let cache = state.store.memory_cache();
     Ok(Json(Ready {
         status: "ready",
         pool_threads: Some(state.pool.threads()),
@@ -123,6 +145,10 @@ pub async fn readyz(State(state): State<AppState>) -> Result<Json<Ready>, ApiErr
         running: Some(running),
         storage_used_bytes: Some(used),
         storage_quota_bytes: Some(quota),
+        solve_memory_budget_bytes: Some(memory_budget),
+        solve_memory_held_bytes: Some(memory_held),
+        cache_budget_bytes: Some(cache.budget() as u64),
+        cache_bytes: Some(cache.bytes() as u64),
     }))
 }
 
