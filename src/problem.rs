@@ -363,6 +363,7 @@ impl From<ParseError> for ApiError {
         match e {
             ParseError::Syntax(_) => ApiError::bad_request("body", e.to_string()),
             ParseError::Data { field, reason } => ApiError::invalid_field(field, reason),
+            ParseError::TooManyValues { .. } => ApiError::too_large("body", e.to_string()),
         }
     }
 }

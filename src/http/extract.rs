@@ -7,7 +7,7 @@ use axum::http::request::Parts;
 use axum::http::{header, HeaderMap, StatusCode};
 use serde::de::DeserializeOwned;
 
-use crate::ops::parse::parse_json;
+use crate::ops::parse::{check_value_count, parse_json, MAX_JSON_VALUES};
 use crate::problem::ApiError;
 
 /// A JSON body (`Content-Type: application/json`).
@@ -38,6 +38,7 @@ impl<T: DeserializeOwned + 'static, S: Send + Sync> FromRequest<S> for ApiJson<T
         let bytes = bytes::Bytes::from_request(req, state)
             .await
             .map_err(bytes_rejection)?;
+        check_value_count(&bytes, MAX_JSON_VALUES)?;
         Ok(ApiJson(parse_json(&bytes)?))
     }
 }

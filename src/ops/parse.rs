@@ -21,6 +21,68 @@ pub enum ParseError {
         /// What serde said of it.
         reason: String,
     },
+    /// More values than a body from the network may hold
+    /// ([`check_value_count`]).
+    #[error(
+        "the JSON body holds more than {limit} values (numbers, strings, arrays, objects): \
+         large arrays go in datasets; upload them (POST /v1/datasets, e.g. as NPY) and name \
+         them by id (a `cost.dataset`, a `mask` source, ...)"
+    )]
+    TooManyValues {
+        /// The limit.
+        limit: usize,
+    },
+}
+
+/// Most values a JSON body from the network may hold: 4,194,304, at least
+/// 8 MB of the most compact JSON and about 200 MB once parsed into nested
+/// vectors. A body of tiny values costs far more memory parsed than on the
+/// wire (a 75 MB list of 12.5M cells was 1 GB), and its millions of small
+/// allocations leave the allocator's bookkeeping behind; arrays belong in
+/// datasets.
+pub const MAX_JSON_VALUES: usize = 4 << 20;
+
+/// Refuses `bytes` if they hold more than `limit` JSON values, before
+/// anything is parsed or allocated.
+///
+/// One pass outside strings: a value starts the document, or follows a `,`,
+/// `[` or `:`; so `1 + #, + #[ + #:` bounds the count from above, and
+/// is exact for well-formed JSON without empty containers. The scan stops at
+/// the limit.
+///
+/// # Examples
+/// ```
+/// use geodex::ops::parse::check_value_count;
+/// assert!(check_value_count(br#"{"a": [1, 2, "x,y"]}"#, 5).is_ok());
+/// assert!(check_value_count(br#"{"a": [1, 2, "x,y"]}"#, 4).is_err());
+/// ```
+pub fn check_value_count(bytes: &[u8], limit: usize) -> Result<(), ParseError> {
+    let mut count = 1usize;
+    let mut in_string = false;
+    let mut escaped = false;
+    for &b in bytes {
+        if in_string {
+            if escaped {
+                escaped = false;
+            } else if b == b'\\' {
+                escaped = true;
+            } else if b == b'"' {
+                in_string = false;
+            }
+            continue;
+        }
+        match b {
+            b'"' => in_string = true,
+            b',' | b'[' | b':' => {
+                count += 1;
+                if count > limit {
+                    return Err(ParseError::TooManyValues { limit });
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Parses a request of type `T` from JSON bytes.

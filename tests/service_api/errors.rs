@@ -177,6 +177,33 @@ async fn bodies_over_the_limit_are_413() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn json_bodies_of_millions_of_values_are_413_before_parsing() {
+    let app = spawn(|_| {}).await;
+    // 4,194,305 cells of 1 value each (8.4 MB): one more than the limit.
+    let n = geodex::ops::parse::MAX_JSON_VALUES;
+    let mut body =
+        String::from(r#"{"cost": {"constant": 1.0, "shape": [8, 8]}, "sources": [{"cells": ["#);
+    body.push_str(&"0,".repeat(n));
+    body.push_str("0]}]}");
+    let res = app
+        .client
+        .post(app.url("/v1/grid/distance"))
+        .header("content-type", "application/json")
+        .body(body)
+        .send()
+        .await
+        .expect("post");
+    let v = problem(res, 413).await;
+    assert_eq!(v["field"], "body", "{v}");
+    assert!(
+        v["detail"]
+            .as_str()
+            .is_some_and(|d| d.contains("/v1/datasets")),
+        "{v}"
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_files_are_problems() {
     let app = spawn(|_| {}).await;
 
@@ -258,6 +285,45 @@ async fn bad_costs_and_sources_are_422_naming_the_field() {
     )
     .await;
     assert_eq!(v["field"], "sources[0]");
+
+    // Distances that would overflow f64 (and read as "unreached"): 422
+    // naming the larger factor, cost or spacing.
+    for (body, field) in [
+        (
+            json!({"cost": {"constant": 1e306, "shape": [64, 64]}, "sources": [{"point": [1, 1]}]}),
+            "cost",
+        ),
+        (
+            json!({"cost": {"constant": 1.0, "shape": [64, 64]}, "spacing": [1e300, 1e300],
+                "sources": [{"point": [1, 1]}]}),
+            "spacing",
+        ),
+    ] {
+        let v = problem(post_distance(&app, body).await, 422).await;
+        assert_eq!(v["field"], field, "{v}");
+        assert!(
+            v["detail"].as_str().is_some_and(|d| d.contains("overflow")),
+            "{v}"
+        );
+    }
+
+    // Every cell of a `cells` list counts against the source limit
+    // (100,000): 100,001 cells of a 64 x 64 grid are refused by name.
+    let cells: Vec<[usize; 2]> = (0..100_001).map(|k| [k % 64, (k / 64) % 64]).collect();
+    let v = problem(
+        post_distance(
+            &app,
+            json!({"cost": {"constant": 1.0, "shape": [64, 64]}, "sources": [{"cells": cells}]}),
+        )
+        .await,
+        413,
+    )
+    .await;
+    assert_eq!(v["field"], "sources", "{v}");
+    assert!(
+        v["detail"].as_str().is_some_and(|d| d.contains("mask")),
+        "{v}"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -17,7 +17,7 @@ use crate::http::extract::{ApiJson, ApiQuery};
 use crate::http::operation::{add_timing, run, store_output};
 use crate::http::AppState;
 use crate::io::{self, Format};
-use crate::ops::parse::parse_json;
+use crate::ops::parse::{check_value_count, parse_json, MAX_JSON_VALUES};
 use crate::ops::spec::distance::{GridDistanceRequest, SolveStats};
 use crate::ops::InputArray;
 use crate::problem::ApiError;
@@ -156,6 +156,8 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
                 "params" => {
                     let bytes = field.bytes().await.map_err(multipart_error)?;
                     let bytes = with_file_cost(&bytes);
+                    check_value_count(&bytes, MAX_JSON_VALUES)
+                        .map_err(|e| ApiError::from(e).nested_in("params"))?;
                     let parsed = parse_json::<GridDistanceRequest>(&bytes)
                         .map_err(|e| ApiError::from(e).nested_in("params"))?;
                     params = Some(parsed);

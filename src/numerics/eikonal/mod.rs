@@ -285,9 +285,48 @@ pub enum EikonalError {
         /// What is wrong with it.
         reason: String,
     },
+    /// The distances this problem can reach do not fit in an `f64`: they
+    /// would overflow to `+inf`, which means "unreached".
+    #[error("{reason}")]
+    Range {
+        /// `"cost"` or `"spacing"`: the larger factor of the bound.
+        field: &'static str,
+        /// The bound and the way out.
+        reason: String,
+    },
     /// The caller raised the cancel flag.
     #[error("cancelled")]
     Cancelled,
+}
+
+/// Largest distance bound a solve accepts: far below `f64::MAX` (1.8e308),
+/// so that sums of a few distances and the squares of the quadratic update's
+/// differences (handled by its one-sided fallback) stay meaningful.
+pub const MAX_DISTANCE_BOUND: f64 = 1e300;
+
+/// Refuses a problem whose distances could overflow.
+///
+/// No minimal path visits a cell twice, so every finite distance is at most
+/// `B = W_max · h_max · 2 · N` (the largest finite cost, the largest
+/// spacing, at most `N` steps of length at most `2 h_max` through the `N`
+/// cells; diagonal and extended stencils stay within that). `B` must stay
+/// below [`MAX_DISTANCE_BOUND`]; otherwise a reached cell could read as
+/// `+inf`, unreached, and the solve would still say "completed".
+pub fn check_range(grid: &Grid, cost: &IsotropicCost<'_>) -> Result<(), EikonalError> {
+    let w_max = cost.max_finite(grid).unwrap_or(0.0);
+    let h_max = grid.spacing().iter().copied().fold(0.0_f64, f64::max);
+    let steps = 2.0 * grid.len() as f64;
+    let bound = w_max * h_max * steps;
+    if bound.is_finite() && bound <= MAX_DISTANCE_BOUND {
+        return Ok(());
+    }
+    let field = if h_max > w_max { "spacing" } else { "cost" };
+    Err(EikonalError::Range {
+        field,
+        reason: format!(
+            "distances on this grid could reach {w_max:e} (largest finite cost) x {h_max:e}              (largest spacing) x {steps:e} (steps through its cells) = {bound:e}, beyond the              {MAX_DISTANCE_BOUND:e} an f64 distance map can hold meaningfully (it would              overflow to +inf, which means unreached): scale the {field} down; distances              scale linearly with it"
+        ),
+    })
 }
 
 /// Computes the geodesic distance to the sources, with Voronoi labels.
@@ -313,6 +352,7 @@ pub fn solve(
     control: &Control<'_>,
 ) -> Result<EikonalOutput, EikonalError> {
     validate_options(options)?;
+    check_range(&problem.grid, &problem.cost)?;
     let front = InitialFront::build(problem, options.source_radius, control)?;
     match options.method {
         Method::FastMarching => fast_marching::solve(problem, &front, options, control),
@@ -371,4 +411,39 @@ fn validate_options(options: &EikonalOptions) -> Result<(), EikonalError> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numerics::Source;
+
+    fn solve_on(shape: &[usize], spacing: f64, w: f64) -> Result<EikonalOutput, EikonalError> {
+        let problem = EikonalProblem {
+            grid: Grid::new(shape, &vec![spacing; shape.len()]).unwrap(),
+            cost: IsotropicCost::constant(w).unwrap(),
+            sources: vec![Source::Point(vec![0.0, 0.0])],
+        };
+        solve(&problem, &EikonalOptions::DEFAULT, &Control::new())
+    }
+
+    #[test]
+    fn distances_that_could_overflow_are_refused_naming_the_larger_factor() {
+        // 1e306 x 1 x 2 x 10,000 cells = 2e310: beyond f64.
+        match solve_on(&[100, 100], 1.0, 1e306) {
+            Err(EikonalError::Range { field, reason }) => {
+                assert_eq!(field, "cost");
+                assert!(reason.contains("scale the cost down"), "{reason}");
+            }
+            other => panic!("{other:?}"),
+        }
+        match solve_on(&[100, 100], 1e299, 1.0) {
+            Err(EikonalError::Range { field, .. }) => assert_eq!(field, "spacing"),
+            other => panic!("{other:?}"),
+        }
+        // Large but representable: every cell is reached, none reads +inf.
+        let out = solve_on(&[100, 100], 1.0, 1e290).unwrap();
+        assert!(out.distance.iter().all(|u| u.is_finite()));
+        assert!((out.distance[[99, 0]] / 1e290 - 99.0).abs() < 1e-9);
+    }
 }

@@ -157,16 +157,7 @@ impl GridDistanceRequest {
                 "at least one source is required",
             ));
         }
-        if self.sources.len() > limits.max_sources {
-            return Err(OpError::TooLarge {
-                field: "sources".into(),
-                reason: format!(
-                    "{} sources, more than the limit of {}",
-                    self.sources.len(),
-                    limits.max_sources
-                ),
-            });
-        }
+        crate::ops::spec::scheme::check_source_count(&self.sources, limits)?;
         for (i, s) in self.sources.iter().enumerate() {
             s.check(&format!("sources[{i}]"))?;
         }

@@ -33,6 +33,7 @@ pub(crate) fn eikonal_error(e: EikonalError) -> OpError {
         EikonalError::Option { field, reason } => OpError::invalid(field, reason),
         EikonalError::Grid(g) => OpError::invalid("cost", g.to_string()),
         EikonalError::Metric(m) => OpError::invalid("cost", m.to_string()),
+        EikonalError::Range { field, reason } => OpError::invalid(field, reason),
     }
 }
 

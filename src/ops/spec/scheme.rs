@@ -118,6 +118,26 @@ impl SourceSpec {
     }
 }
 
+/// Refuses more source points than `limits.max_sources`, counting every
+/// cell of a `cells` list as one (a 16M-cell list is as heavy as 16M point
+/// sources); a large seed region belongs in a `mask` dataset.
+pub fn check_source_count(sources: &[SourceSpec], limits: &OpLimits) -> Result<(), OpError> {
+    let count: usize = sources
+        .iter()
+        .map(|s| s.cells.as_ref().map_or(1, Vec::len))
+        .fold(0, usize::saturating_add);
+    if count > limits.max_sources {
+        return Err(OpError::TooLarge {
+            field: "sources".into(),
+            reason: format!(
+                "{count} sources (each cell of a `cells` list counts as one), more than the                  limit of {}: give a large seed region as a `mask` dataset",
+                limits.max_sources
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// The dataset ids named by `level_set` and `mask` sources, with their
 /// JSON paths (`sources[1].mask`).
 pub fn source_dataset_ids(sources: &[SourceSpec]) -> Vec<(String, String)> {
