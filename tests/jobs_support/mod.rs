@@ -38,11 +38,32 @@ impl Server {
     /// Starts the binary on a free port with its data under `data_dir`, and
     /// waits until `/healthz` answers.
     pub async fn start(data_dir: &Path, name: &str, extra: &[&str]) -> Server {
+        Self::start_under(&[], data_dir, name, extra).await
+    }
+
+    /// As [`Server::start`], with the binary run by `wrapper` (a program and
+    /// its arguments, which must end by executing the rest of its command
+    /// line in the same process, as `unshare` does).
+    pub async fn start_under(
+        wrapper: &[&str],
+        data_dir: &Path,
+        name: &str,
+        extra: &[&str],
+    ) -> Server {
         let port = free_port();
         let log = data_dir.join(format!("{name}-{port}.log"));
         let out = std::fs::File::create(&log).expect("log file");
         let err = out.try_clone().expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_geodex"))
+        let bin = env!("CARGO_BIN_EXE_geodex");
+        let mut command = match wrapper.split_first() {
+            Some((program, args)) => {
+                let mut c = Command::new(program);
+                c.args(args).arg(bin);
+                c
+            }
+            None => Command::new(bin),
+        };
+        let child = command
             .arg("serve")
             .arg("--addr")
             .arg(format!("127.0.0.1:{port}"))
@@ -75,6 +96,11 @@ impl Server {
             );
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
+    }
+
+    /// The child's process id.
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
     }
 
     pub fn url(&self, path: &str) -> String {
