@@ -30,6 +30,21 @@ Attacks and bounds:
                  input that froze the exact solver): 422 at upload naming the
                  problem; an exact sampling that would run for minutes: 504
                  within 2 s (deadline 1 s), and the next solve succeeds.
+  heat-cache     heat-method solves on one 40,000-vertex mesh with m = 1..8
+                 (each its own factorisation, about 50 MB) under --cache-bytes 128 MB: every
+                 solve 200, /readyz's cache_bytes within the budget after
+                 each, and RSS at the end within idle + budget + 64 MB.
+  json-storm     4 JSON bodies of 75 MB (a 12.5M-cell source list, 37.5M
+                 values): each refused 413 naming `body` before it is parsed
+                 (more than 4M values), peak RSS under idle + 400 MB, and RSS
+                 back within 25 % of idle (+ 16 MB) within 30 s.
+  overflow       a cost of 1e306 and a spacing of 1e300 (distances beyond
+                 f64): 422 naming `cost` and `spacing`, not a map of +inf.
+  quota-results  a job whose results exceed the storage quota: the job fails
+                 with the 507 problem and no file of it is left on disk.
+
+The bomb storms also check that RSS comes back within 25 % of its idle
+value (+ 16 MB) within 30 s after the storm.
 """
 
 import argparse
@@ -284,16 +299,34 @@ def storm(server, body, ctype, n):
     return statuses, time.perf_counter() - t0
 
 
+def rss_settles(server, idle, within=30.0):
+    """Polls RSS for up to `within` s until it is back within 25 % of `idle`
+    (+ 16 MB); returns (settled, seconds, MB)."""
+    t0 = time.perf_counter()
+    while True:
+        now = server.rss_mb()
+        dt = time.perf_counter() - t0
+        if now <= idle * 1.25 + 16:
+            return True, dt, now
+        if dt > within:
+            return False, dt, now
+        time.sleep(0.5)
+
+
 def png_bomb(binary, n=60):
     bomb = png_bomb_bytes()
     s = Server(binary)
     try:
+        time.sleep(0.5)
+        idle = s.rss_mb()
         statuses, dt = storm(s, bomb, "image/png", n)
         peak = s.hwm_mb()
+        settled, back, after = rss_settles(s, idle)
         counts = {st: statuses.count(st) for st in set(statuses)}
-        check("png-bomb", all(st in (201, 413, 503) for st in statuses) and peak < 1024,
+        check("png-bomb", all(st in (201, 413, 503) for st in statuses) and peak < 1024 and settled,
               f"{n} concurrent {len(bomb) / 1e6:.1f} MB PNGs with a 1 GiB iCCP chunk in {dt:.1f} s: "
-              f"statuses {counts}, peak RSS {peak:.0f} MB")
+              f"statuses {counts}, RSS idle {idle:.0f} MB, peak {peak:.0f} MB, "
+              f"{after:.0f} MB {back:.1f} s after")
     finally:
         s.stop()
 
@@ -329,8 +362,10 @@ def nifti_bomb(binary, n=200, budget=150_000_000):
             figures = (f"{label}: {n} concurrent {len(bomb) / 1e3:.0f} KB .nii.gz (256^3 inside) "
                        f"in {dt:.1f} s: statuses {counts}, RSS {idle:.0f} MB idle, peak {peak:.0f} MB")
             if label == "budget":
+                settled, back, after = rss_settles(s, idle)
                 check("nifti-bomb", all(st in (201, 413, 503) for st in statuses)
-                      and peak - idle < budget / 1e6 + 64, figures)
+                      and peak - idle < budget / 1e6 + 64 and settled,
+                      f"{figures}, {after:.0f} MB {back:.1f} s after")
             else:
                 print(f"     {figures}")
         finally:
@@ -390,6 +425,113 @@ def frozen_mesh(binary):
         s.stop()
 
 
+def post_json(server, path, doc, timeout=120.0):
+    st, body = server.post(path, json.dumps(doc).encode(), "application/json", timeout=timeout)
+    try:
+        return st, json.loads(body) if body else {}
+    except ValueError:
+        return st, {"raw": body[:200].decode(errors="replace")}
+
+
+def heat_cache(binary, budget_mb=128):
+    s = Server(binary, "--cache-bytes", str(budget_mb << 20), threads=2)
+    try:
+        st, up = s.post("/v1/datasets", grid_obj(200), "model/obj", timeout=60)
+        mesh = json.loads(up)["id"]
+        time.sleep(0.5)
+        idle = s.rss_mb()
+        statuses, cached = [], []
+        for m in range(1, 9):
+            st, doc = post_json(s, "/v1/mesh/distance", {
+                "mesh": mesh, "method": "heat", "heat": {"m": m}, "sources": [{"vertex": 0}]})
+            statuses.append(st)
+            _, ready = s.get("/readyz")
+            cached.append(json.loads(ready).get("cache_bytes", -1) / 2**20)
+        end = s.rss_mb()
+        peak = s.hwm_mb()
+        check("heat-cache", all(st == 200 for st in statuses)
+              and all(0 <= c <= budget_mb for c in cached) and end <= idle + budget_mb + 64,
+              f"8 heat solves (m = 1..8) on 40,000 vertices, --cache-bytes {budget_mb} MB: statuses "
+              f"{sorted(set(statuses))}, cache after each {', '.join(f'{c:.1f}' for c in cached)} MB; "
+              f"RSS idle {idle:.0f} MB, "
+              f"peak {peak:.0f} MB, after {end:.0f} MB")
+    finally:
+        s.stop()
+
+
+def json_storm(binary, n=4, cells=12_500_000):
+    # A source list of `cells` cells as JSON: about 8 bytes per cell.
+    one = b"[1,2],"
+    body = (b'{"cost": {"constant": 1.0, "shape": [64, 64]}, "sources": [{"cells": ['
+            + one * (cells - 1) + b'[1,2]]}]}')
+    s = Server(binary, threads=2)
+    try:
+        time.sleep(0.5)
+        idle = s.rss_mb()
+        statuses, fields = [], []
+        t0 = time.perf_counter()
+        for _ in range(n):
+            st, raw = s.post("/v1/grid/distance", body, "application/json", timeout=120)
+            statuses.append(st)
+            try:
+                fields.append(json.loads(raw).get("field"))
+            except ValueError:
+                fields.append(None)
+        dt = time.perf_counter() - t0
+        peak = s.hwm_mb()
+        settled, back, after = rss_settles(s, idle)
+        check("json-storm", all(st == 413 for st in statuses) and set(fields) == {"body"}
+              and peak < idle + 400 and settled,
+              f"{n} JSON bodies of {len(body) / 1e6:.0f} MB ({cells:,} source cells) in {dt:.1f} s: "
+              f"statuses {statuses}, fields {sorted(set(map(str, fields)))}; RSS idle {idle:.0f} MB, "
+              f"peak {peak:.0f} MB, {after:.0f} MB {back:.1f} s after")
+    finally:
+        s.stop()
+
+
+def overflow(binary):
+    s = Server(binary)
+    try:
+        got = []
+        for doc, field in (
+                ({"cost": {"constant": 1e306, "shape": [64, 64]}, "sources": [{"point": [1, 1]}]},
+                 "cost"),
+                ({"cost": {"constant": 1.0, "shape": [64, 64]}, "spacing": [1e300, 1e300],
+                  "sources": [{"point": [1, 1]}]}, "spacing")):
+            st, p = post_json(s, "/v1/grid/distance", doc)
+            got.append((st, p.get("field"), field))
+        check("overflow", all(st == 422 and f == want for st, f, want in got),
+              "; ".join(f"{want}: {st} naming {f!r}" for st, f, want in got))
+    finally:
+        s.stop()
+
+
+def quota_results(binary):
+    # 300 KB of quota: the 80 KB cost fits, the job's distance and labels
+    # over a 200 x 200 grid (320 KB + 160 KB) do not.
+    s = Server(binary, "--storage-quota-bytes", "300000", "--job-poll-ms", "50")
+    try:
+        st, job = post_json(s, "/v1/jobs", {"operation": "grid.distance", "params": {
+            "cost": {"constant": 1.0, "shape": [200, 200]}, "sources": [{"point": [3, 4]}]}})
+        jid = job.get("id")
+        final = {}
+        for _ in range(600):
+            _, raw = s.get(f"/v1/jobs/{jid}")
+            final = json.loads(raw)
+            if final.get("state") in ("succeeded", "failed", "cancelled"):
+                break
+            time.sleep(0.05)
+        results = os.path.join(s.dir, "data", "results", "results", str(jid))
+        left = sum(len(f) for _, _, f in os.walk(results))
+        err = final.get("error") or {}
+        check("quota-results", st == 202 and final.get("state") == "failed"
+              and err.get("status") == 507 and left == 0,
+              f"job {st}, then {final.get('state')} with {err.get('status')} "
+              f"({str(err.get('detail'))[:60]}...); files left: {left}")
+    finally:
+        s.stop()
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", default=os.environ.get("BIN", "target/release/geodex"))
@@ -403,6 +545,10 @@ def main():
         "png-bomb": lambda: png_bomb(a.bin),
         "nifti-bomb": lambda: nifti_bomb(a.bin),
         "slowloris": lambda: slowloris(a.bin, a.slow),
+        "heat-cache": lambda: heat_cache(a.bin),
+        "json-storm": lambda: json_storm(a.bin),
+        "overflow": lambda: overflow(a.bin),
+        "quota-results": lambda: quota_results(a.bin),
     }
     for name, run in attacks.items():
         if a.only and name != a.only:
