@@ -5,7 +5,9 @@
 //! - **header timeout**: a client has [`ServerLimits::header_timeout`] to
 //!   send its first bytes and then its request headers; the same timer closes
 //!   a keep-alive connection that stays idle that long (hyper starts it when
-//!   it waits for the next request);
+//!   it waits for the next request). An HTTP/2 connection with no stream in
+//!   progress and none opened for that long is shut down too (GOAWAY), since
+//!   hyper's HTTP/2 server has no idle timer;
 //! - **body stall timeout**: a request body that sends nothing for
 //!   [`ServerLimits::body_timeout`] fails with [`BodyStalled`], which the
 //!   extractors answer 408 (`request-timeout`), and the connection closes;
@@ -360,9 +362,12 @@ impl Connection {
     async fn serve(&mut self, stream: TcpStream) {
         let router = self.router.clone();
         let busy = Arc::clone(&self.busy);
+        let served = Arc::new(AtomicUsize::new(0));
+        let counted = Arc::clone(&served);
         let body_timeout = self.limits.body_timeout;
         let min_rate = self.limits.min_body_rate;
         let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
+            counted.fetch_add(1, Ordering::AcqRel);
             let guard = Busy::enter(&busy);
             let router = router.clone();
             async move {
@@ -386,6 +391,20 @@ impl Connection {
         if draining {
             conn.as_mut().graceful_shutdown();
         }
+        // The idle timeout of both protocols: a connection with no request
+        // in progress and none started for a whole period is shut down
+        // (between one and two periods of idleness). HTTP/1 has hyper's
+        // header timer too; HTTP/2 has nothing else: a client that answers
+        // the pings would otherwise hold its connection forever.
+        let mut idle_check = tokio::time::interval_at(
+            tokio::time::Instant::now() + self.limits.header_timeout,
+            self.limits.header_timeout.max(Duration::from_millis(10)),
+        );
+        let mut seen = 0;
+        // An idle connection told to go gets one more period to finish its
+        // goodbye (an HTTP/2 client that never acknowledges the GOAWAY's
+        // ping would otherwise keep it), then it is dropped.
+        let mut goodbye: Option<Pin<Box<tokio::time::Sleep>>> = None;
         loop {
             tokio::select! {
                 r = conn.as_mut() => {
@@ -398,6 +417,26 @@ impl Connection {
                 _ = self.stop.changed(), if !draining => {
                     draining = true;
                     conn.as_mut().graceful_shutdown();
+                }
+                _ = idle_check.tick(), if !draining => {
+                    let now = served.load(Ordering::Acquire);
+                    if now == seen && self.busy.load(Ordering::Acquire) == 0 {
+                        draining = true;
+                        conn.as_mut().graceful_shutdown();
+                        goodbye = Some(Box::pin(tokio::time::sleep(self.limits.header_timeout)));
+                    }
+                    seen = now;
+                }
+                () = async {
+                    match goodbye.as_mut() {
+                        Some(timer) => timer.await,
+                        None => std::future::pending().await,
+                    }
+                } => {
+                    if self.busy.load(Ordering::Acquire) == 0 {
+                        break;
+                    }
+                    goodbye = None;
                 }
             }
         }

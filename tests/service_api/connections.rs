@@ -1,10 +1,12 @@
 //! The accept loop's limits (issue 20): a declared oversized body is
 //! refused before a byte of it is read, a stalled body gets 408, slow
 //! headers time out, and at the connection cap the oldest idle connection
-//! makes room (or, when every connection is busy, the newcomer gets 503).
+//! makes room (or, when every connection is busy, the newcomer gets 503);
+//! over HTTP/2 too, idle connections close and stalled bodies get 408.
 
 use std::time::{Duration, Instant};
 
+use futures::StreamExt;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
@@ -212,6 +214,87 @@ async fn at_the_cap_with_every_connection_busy_a_newcomer_gets_503() {
     // Once the uploads go away, the service answers again.
     tokio::time::sleep(Duration::from_millis(200)).await;
     assert_eq!(app.get("/healthz").await.status(), 200);
+}
+
+/// The client connection preface of HTTP/2 with prior knowledge, then an
+/// empty SETTINGS frame (length 0, type 4, no flags, stream 0).
+const H2_PREFACE: &[u8] = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n\0\0\0\x04\0\0\0\0\0";
+
+/// HTTP/2 has no header timer in hyper: a connection that opens no stream
+/// is shut down by the accept loop's idle check (GOAWAY, then close) within
+/// two header timeouts, and so is one idle after its requests.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idle_http2_connections_are_closed() {
+    let app = spawn(|s| s.header_timeout_secs = 0.5).await;
+    let mut s = TcpStream::connect(addr(&app.base)).await.expect("connect");
+    let started = Instant::now();
+    s.write_all(H2_PREFACE).await.expect("send");
+    let (bytes, closed) = read_all(&mut s, Duration::from_secs(5)).await;
+    assert!(closed, "an HTTP/2 connection with no stream stayed open");
+    // The server spoke HTTP/2 (its SETTINGS frame, type 4, comes first) and
+    // said goodbye with a GOAWAY frame (type 7).
+    let mut types = Vec::new();
+    let mut at = 0;
+    while at + 9 <= bytes.len() {
+        let len = usize::from(bytes[at]) << 16
+            | usize::from(bytes[at + 1]) << 8
+            | usize::from(bytes[at + 2]);
+        types.push(bytes[at + 3]);
+        at += 9 + len;
+    }
+    assert_eq!(types.first(), Some(&4), "frames {types:?}");
+    assert!(types.contains(&7), "no GOAWAY among frames {types:?}");
+    let after = started.elapsed();
+    assert!(
+        after >= Duration::from_millis(450) && after < Duration::from_millis(2500),
+        "closed after {after:?}"
+    );
+    // A real HTTP/2 client is served, on one connection, request after request.
+    let h2 = reqwest::Client::builder()
+        .http2_prior_knowledge()
+        .build()
+        .expect("client");
+    for _ in 0..3 {
+        let res = h2.get(app.url("/healthz")).send().await.expect("h2 get");
+        assert_eq!(res.version(), reqwest::Version::HTTP_2);
+        assert_eq!(res.status(), 200);
+    }
+}
+
+/// The body timeout covers HTTP/2 request bodies too: a stream that sends a
+/// few bytes and stalls gets 408 on its stream.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stalled_http2_body_gets_408() {
+    let app = spawn(|s| s.body_timeout_secs = 0.5).await;
+    let h2 = reqwest::Client::builder()
+        .http2_prior_knowledge()
+        .build()
+        .expect("client");
+    let first = futures::stream::once(async {
+        Ok::<_, std::io::Error>(bytes::Bytes::from_static(b"0123456789"))
+    });
+    let stalled = first.chain(futures::stream::pending());
+    let started = Instant::now();
+    let res = tokio::time::timeout(
+        Duration::from_secs(10),
+        h2.post(app.url("/v1/datasets"))
+            .header("content-type", "application/x-npy")
+            .header("content-length", "1000")
+            .body(reqwest::Body::wrap_stream(stalled))
+            .send(),
+    )
+    .await
+    .expect("answered within 10 s")
+    .expect("h2 post");
+    assert_eq!(res.version(), reqwest::Version::HTTP_2);
+    assert_eq!(res.status(), 408);
+    let text = res.text().await.expect("body");
+    assert!(text.contains("body-timeout-secs"), "{text}");
+    assert!(
+        started.elapsed() >= Duration::from_millis(450),
+        "{:?}",
+        started.elapsed()
+    );
 }
 
 /// Uploads are decoded on the solver pool and admitted like solves: while a
