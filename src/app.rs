@@ -72,10 +72,7 @@ impl Application {
             .with_memory_budget(settings.solve_memory());
         let store = Arc::new(store);
         let pool = Arc::new(pool);
-        let op_limits = OpLimits {
-            max_cells: settings.max_cells,
-            ..OpLimits::default()
-        };
+        let op_limits = op_limits(&settings);
         let jobs = Jobs::open(
             settings.jobs_config(),
             Arc::clone(&store),
@@ -215,7 +212,18 @@ async fn open_auth(settings: &ServeArgs, jobs: &Jobs) -> anyhow::Result<http::au
     })
 }
 
-fn io_limits(settings: &ServeArgs) -> Limits {
+/// The limits the service validates requests against (also what
+/// [`crate::fuzzing`] runs the request parsers with).
+pub(crate) fn op_limits(settings: &ServeArgs) -> OpLimits {
+    OpLimits {
+        max_cells: settings.max_cells,
+        ..OpLimits::default()
+    }
+}
+
+/// The limits the service decodes uploads with (also what
+/// [`crate::fuzzing`] runs the decoders with).
+pub(crate) fn io_limits(settings: &ServeArgs) -> Limits {
     Limits {
         max_cells: settings.max_cells,
         max_bytes: settings.max_cells.saturating_mul(8),

@@ -52,6 +52,10 @@ pub mod collections;
 pub mod config;
 #[cfg(feature = "server")]
 pub mod datasets;
+/// Fuzzing entry points, shared by `fuzz/` and `tests/fuzz_corpus.rs`.
+#[cfg(feature = "server")]
+#[doc(hidden)]
+pub mod fuzzing;
 #[cfg(feature = "server")]
 pub mod http;
 #[cfg(feature = "server")]

@@ -89,6 +89,12 @@ fn png_pixels_only(bytes: &[u8]) -> Option<Vec<u8>> {
     Some(out)
 }
 
+/// The longest JPEG side the decoder takes. zune-jpeg (under `image`)
+/// counts a side's 8-pixel blocks as `(side + 7) / 8` in a `u16`, which
+/// overflows above 65528 (a panic with overflow checks, wrong block counts
+/// without): found by fuzzing (`fuzz/`), refused before decoding.
+const JPEG_MAX_SIDE: u32 = u16::MAX as u32 - 7;
+
 /// Decodes a PNG or JPEG file.
 pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<ArrayData, IoError> {
     let image_format = match format {
@@ -131,6 +137,14 @@ pub(crate) fn decode(bytes: &[u8], format: Format, limits: &Limits) -> Result<Ar
     reader.limits(image_limits);
     let decoder = reader.into_decoder().map_err(|e| map_err(format, e))?;
     let (width, height) = decoder.dimensions();
+    if format == Format::Jpeg && width.max(height) > JPEG_MAX_SIDE {
+        return Err(IoError::unsupported(
+            format,
+            format!(
+                "{width}×{height} pixels: sides above {JPEG_MAX_SIDE} pixels are not supported"
+            ),
+        ));
+    }
     let shape = [height as usize, width as usize];
     let colour = decoder.color_type();
     let grey = !colour.has_color();
@@ -368,6 +382,42 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn jpeg_sides_above_65528_are_refused_not_overflowed() {
+        let (w, h) = (16u32, 8u32);
+        let grey: Vec<u8> = (0..w * h).map(|i| (i * 7) as u8).collect();
+        let mut jpeg = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::jpeg::JpegEncoder::new(&mut jpeg),
+            &grey,
+            w,
+            h,
+            image::ExtendedColorType::L8,
+        )
+        .unwrap();
+        let sof = jpeg.windows(2).position(|m| m == [0xFF, 0xC0]).unwrap();
+        for (side, sampling) in [(65535u16, 0x22u8), (65529, 0x11), (65528, 0x22)] {
+            let mut bytes = jpeg.clone();
+            // SOF0: marker, length, precision, height, width, components,
+            // then (id, sampling factors, table) for the one grey component.
+            bytes[sof + 5..sof + 7].copy_from_slice(&1u16.to_be_bytes());
+            bytes[sof + 7..sof + 9].copy_from_slice(&side.to_be_bytes());
+            bytes[sof + 11] = sampling;
+            let result = decode(&bytes, Format::Jpeg, &Limits::default());
+            if side > 65528 {
+                assert!(
+                    matches!(&result, Err(IoError::Unsupported { reason, .. }) if reason.contains("65528")),
+                    "{side}: {result:?}"
+                );
+            } else {
+                assert!(
+                    !matches!(result, Err(IoError::Unsupported { .. })),
+                    "{result:?}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn luma_weights_sum_to_one() {

@@ -189,4 +189,24 @@ mod tests {
         );
         assert!(find("nope").is_none());
     }
+
+    #[test]
+    fn canonical_json_reads_back_to_the_same_floats() {
+        // Without serde_json's `float_roundtrip` these read back one ulp
+        // off, and so did a request's canonical JSON (found by fuzzing).
+        let e = find("grid.distance").expect("registered");
+        let body = br#"{"cost": {"constant": 2.2201838057111728e-13, "shape": [8, 8]},
+            "sources": [{"point": [1.1362275116276523e-8, 4.897745441634975e-53]}]}"#;
+        let request = (e.parse)(body).expect("parses");
+        let canonical = request.canonical_json().expect("serialises");
+        for float in [
+            "2.2201838057111728e-13",
+            "1.1362275116276523e-8",
+            "4.897745441634975e-53",
+        ] {
+            assert!(canonical.contains(float), "{float} lost in {canonical}");
+        }
+        let again = (e.parse)(canonical.as_bytes()).expect("parses again");
+        assert_eq!(again.canonical_json().expect("serialises"), canonical);
+    }
 }

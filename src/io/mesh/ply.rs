@@ -4,10 +4,10 @@
 //! are read and ignored. The header is parsed first and its element counts
 //! are checked against the limits before the payload is read.
 
-use std::io::{BufReader, Cursor};
+use std::io::{BufReader, Cursor, Seek};
 
 use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{Property, PropertyAccess};
+use ply_rs_bw::ply::{Encoding, Header, Property, PropertyAccess, PropertyType, ScalarType};
 
 use super::{MeshFormat, MeshIoError, MeshLimits, RawMesh};
 
@@ -76,6 +76,91 @@ impl PropertyAccess for Record {
     }
 }
 
+/// A record of an element the mesh does not use: read, then dropped (a
+/// zero-sized type, so reading a million of them allocates nothing).
+struct Skipped;
+
+impl PropertyAccess for Skipped {
+    fn new() -> Self {
+        Skipped
+    }
+
+    fn set_property(&mut self, _name: &str, _p: Property) {}
+}
+
+/// The bytes of one binary value of `t`.
+fn scalar_bytes(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// Refuses a header whose element counts cannot fit in `payload`, the
+/// bytes after it, before any record is read: a binary record takes at
+/// least its scalars and the length of each list (lists may be empty), an
+/// ASCII record one line (binary records of no property take no bytes and
+/// are not read). Without this, a 200-byte file declaring 10^12
+/// records of an element with no properties (zero bytes each) kept the
+/// reader looping, and allocating a record per turn, until memory ran out.
+fn check_counts(header: &Header, payload: &[u8]) -> Result<(), MeshIoError> {
+    let binary = !matches!(header.encoding, Encoding::Ascii);
+    let (available, unit) = if binary {
+        (payload.len(), "bytes")
+    } else {
+        let newlines = payload.iter().filter(|&&b| b == b'\n').count();
+        let open_line = payload.last().is_some_and(|&b| b != b'\n');
+        (newlines + usize::from(open_line), "lines")
+    };
+    let mut needed = 0usize;
+    for (name, def) in &header.elements {
+        if name == "face"
+            && def.count > 0
+            && !def.properties.contains_key("vertex_indices")
+            && !def.properties.contains_key("vertex_index")
+        {
+            return Err(MeshIoError::corrupt(
+                F,
+                None,
+                "face has no 'vertex_indices' property",
+            ));
+        }
+        if binary && def.properties.is_empty() {
+            // Its records take no bytes: none is read.
+            continue;
+        }
+        let per_record = if binary {
+            def.properties
+                .values()
+                .map(|p| match &p.data_type {
+                    PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_bytes(t),
+                })
+                .sum()
+        } else {
+            1
+        };
+        needed = def
+            .count
+            .checked_mul(per_record)
+            .and_then(|n| n.checked_add(needed))
+            .filter(|&n| n <= available)
+            .ok_or_else(|| {
+                MeshIoError::corrupt(
+                    F,
+                    None,
+                    format!(
+                        "element '{name}' declares {} records, more than the {available} {unit} \
+                         after the header can hold",
+                        def.count
+                    ),
+                )
+            })?;
+    }
+    Ok(())
+}
+
 /// Per-vertex `distance` and `label` properties of a PLY file (results
 /// written by geodex), when present.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -106,17 +191,6 @@ fn parse(bytes: &[u8], limits: &MeshLimits) -> Result<(RawMesh, VertexValues), M
     let count = |name: &str| header.elements.get(name).map_or(0, |e| e.count);
     let (nv, nf) = (count("vertex"), count("face"));
     limits.check(F, nv as u64, nf as u64)?;
-    // Binary payloads need at least 12 bytes per vertex, 1 per face.
-    if nv.saturating_mul(3) > bytes.len() || nf > bytes.len() {
-        return Err(MeshIoError::corrupt(
-            F,
-            None,
-            format!(
-                "declares {nv} vertices and {nf} faces in a {}-byte file",
-                bytes.len()
-            ),
-        ));
-    }
     let vdef = header
         .elements
         .get("vertex")
@@ -130,12 +204,29 @@ fn parse(bytes: &[u8], limits: &MeshLimits) -> Result<(RawMesh, VertexValues), M
             ));
         }
     }
+    let start = reader
+        .stream_position()
+        .map_or(bytes.len(), |p| usize::try_from(p).unwrap_or(usize::MAX));
+    check_counts(&header, bytes.get(start..).unwrap_or_default())?;
     let mut raw = RawMesh::default();
     let mut values = VertexValues::default();
+    let skipper = Parser::<Skipped>::new();
+    let binary = !matches!(header.encoding, Encoding::Ascii);
     for (name, def) in &header.elements {
+        let element_error =
+            |e: std::io::Error| MeshIoError::corrupt(F, None, format!("element '{name}': {e}"));
+        if name != "vertex" && name != "face" {
+            // Read past it (it may hold lists) without keeping its records.
+            if def.count > 0 && !(binary && def.properties.is_empty()) {
+                skipper
+                    .read_payload_for_element(&mut reader, def, &header)
+                    .map_err(element_error)?;
+            }
+            continue;
+        }
         let recs = parser
             .read_payload_for_element(&mut reader, def, &header)
-            .map_err(|e| MeshIoError::corrupt(F, None, format!("element '{name}': {e}")))?;
+            .map_err(element_error)?;
         match name.as_str() {
             "vertex" => {
                 raw.positions.reserve_exact(recs.len());
@@ -183,4 +274,94 @@ fn parse(bytes: &[u8], limits: &MeshLimits) -> Result<(RawMesh, VertexValues), M
         }
     }
     Ok((raw, values))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A binary little-endian triangle, with `extra` header lines after the
+    /// face element and `tail` bytes after its payload.
+    fn triangle(extra: &str, tail: &[u8]) -> Vec<u8> {
+        let mut out = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+             property float y\nproperty float z\nelement face 1\n\
+             property list uchar int vertex_indices\n{extra}end_header\n"
+        )
+        .into_bytes();
+        for v in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]] {
+            for c in v {
+                out.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        out.push(3);
+        for i in [0i32, 1, 2] {
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+        out.extend_from_slice(tail);
+        out
+    }
+
+    #[test]
+    fn reads_a_binary_triangle() {
+        let raw = read(&triangle("", b""), &MeshLimits::default()).unwrap();
+        assert_eq!(raw.positions.len(), 3);
+        assert_eq!(raw.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn elements_of_no_property_take_no_time_or_memory() {
+        // 10^12 records of zero bytes: read one by one, they looped and
+        // allocated until memory ran out.
+        let bytes = triangle("element junk 1000000000000\n", b"");
+        let raw = read(&bytes, &MeshLimits::default()).unwrap();
+        assert_eq!(raw.triangles.len(), 1);
+    }
+
+    #[test]
+    fn unknown_elements_are_skipped_lists_and_all() {
+        let mut tail = Vec::new();
+        for n in [2u8, 0, 1] {
+            tail.push(n);
+            tail.extend(std::iter::repeat_n(7u8, usize::from(n) * 2));
+        }
+        let bytes = triangle("element edge 3\nproperty list uchar short ends\n", &tail);
+        let raw = read(&bytes, &MeshLimits::default()).unwrap();
+        assert_eq!(raw.triangles.len(), 1);
+    }
+
+    #[test]
+    fn counts_that_cannot_fit_in_the_file_are_refused_before_reading() {
+        let cases = [
+            triangle("element junk 1000000000\nproperty int a\n", b"1234"),
+            triangle(
+                "element junk 18446744073709551615\nproperty double a\n",
+                b"",
+            ),
+            b"ply\nformat binary_big_endian 1.0\nelement vertex 1000000\nproperty double x\n\
+              property double y\nproperty double z\nend_header\n0123456789abcdef01234567"
+                .to_vec(),
+            b"ply\nformat ascii 1.0\nelement vertex 1000000\nproperty float x\n\
+              property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n"
+                .to_vec(),
+        ];
+        for bytes in cases {
+            match read(&bytes, &MeshLimits::default()) {
+                Err(MeshIoError::Corrupt { reason, .. }) => {
+                    assert!(reason.contains("more than the"), "{reason}")
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_face_element_without_indices_is_refused() {
+        let bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\n\
+              property float y\nproperty float z\nelement face 10\nend_header\n";
+        match read(bytes, &MeshLimits::default()) {
+            Err(MeshIoError::Corrupt { reason, .. }) => assert!(reason.contains("vertex_indices")),
+            other => panic!("{other:?}"),
+        }
+    }
 }
