@@ -345,21 +345,28 @@ impl Connection {
     async fn run(mut self, stream: TcpStream) {
         // hyper's version sniffing (HTTP/1 or the HTTP/2 preface) has no
         // timer of its own: wait for the first bytes here.
-        let mut probe = [0u8; 1];
+        let mut probe = [0u8; 3];
         let first = tokio::select! {
             r = tokio::time::timeout(self.limits.header_timeout, stream.peek(&mut probe)) => {
-                matches!(r, Ok(Ok(n)) if n > 0)
+                match r {
+                    Ok(Ok(n)) if n > 0 => Some(n),
+                    _ => None,
+                }
             }
-            () = self.evict.notified() => false,
-            _ = self.stop.changed() => false,
+            () = self.evict.notified() => None,
+            _ = self.stop.changed() => None,
         };
-        if first {
-            self.serve(stream).await;
+        if let Some(n) = first {
+            // The HTTP/2 preface starts `PRI`; HTTP/1 keeps hyper's timers.
+            let maybe_h2 = b"PRI".starts_with(&probe[..n]);
+            self.serve(stream, maybe_h2).await;
         }
         lock(&self.registry).open.remove(&self.id);
     }
 
-    async fn serve(&mut self, stream: TcpStream) {
+    /// Serves the connection; `idle_check_on` arms the idle timeout of
+    /// connections that may speak HTTP/2 (hyper has none for them).
+    async fn serve(&mut self, stream: TcpStream, idle_check_on: bool) {
         let router = self.router.clone();
         let busy = Arc::clone(&self.busy);
         let served = Arc::new(AtomicUsize::new(0));
@@ -391,11 +398,12 @@ impl Connection {
         if draining {
             conn.as_mut().graceful_shutdown();
         }
-        // The idle timeout of both protocols: a connection with no request
-        // in progress and none started for a whole period is shut down
-        // (between one and two periods of idleness). HTTP/1 has hyper's
-        // header timer too; HTTP/2 has nothing else: a client that answers
-        // the pings would otherwise hold its connection forever.
+        // The idle timeout of HTTP/2: a connection with no request in
+        // progress and none started for a whole period is shut down
+        // (between one and two periods of idleness): hyper has no timer for
+        // it, and a client that answers the pings would otherwise hold its
+        // connection forever. HTTP/1 has hyper's header timer, and skips
+        // this (19,800 slow HTTP/1 connections do not each need a timer).
         let mut idle_check = tokio::time::interval_at(
             tokio::time::Instant::now() + self.limits.header_timeout,
             self.limits.header_timeout.max(Duration::from_millis(10)),
@@ -418,7 +426,7 @@ impl Connection {
                     draining = true;
                     conn.as_mut().graceful_shutdown();
                 }
-                _ = idle_check.tick(), if !draining => {
+                _ = idle_check.tick(), if idle_check_on && !draining => {
                     let now = served.load(Ordering::Acquire);
                     if now == seen && self.busy.load(Ordering::Acquire) == 0 {
                         draining = true;
