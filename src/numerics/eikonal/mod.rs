@@ -313,7 +313,11 @@ pub const MAX_DISTANCE_BOUND: f64 = 1e300;
 /// below [`MAX_DISTANCE_BOUND`]; otherwise a reached cell could read as
 /// `+inf`, unreached, and the solve would still say "completed".
 pub fn check_range(grid: &Grid, cost: &IsotropicCost<'_>) -> Result<(), EikonalError> {
-    let w_max = cost.max_finite(grid).unwrap_or(0.0);
+    // A uniform cost is its own maximum: no scan of the grid.
+    let w_max = cost
+        .uniform_value()
+        .or_else(|| cost.max_finite(grid))
+        .unwrap_or(0.0);
     let h_max = grid.spacing().iter().copied().fold(0.0_f64, f64::max);
     let steps = 2.0 * grid.len() as f64;
     let bound = w_max * h_max * steps;
