@@ -35,9 +35,9 @@ pub enum ParseError {
 }
 
 /// Most values a JSON body from the network may hold: 4,194,304, at least
-/// 8 MB of the most compact JSON and about 200 MB once parsed into nested
-/// vectors. A body of tiny values costs far more memory parsed than on the
-/// wire (a 75 MB list of 12.5M cells was 1 GB), and its millions of small
+/// 8 MB of the most compact JSON. A body of tiny values costs far more
+/// memory parsed than on the wire (a 75 MB list of 12.5M cells took the
+/// process to 1 GB, `tests/hostile/hostile.py` json-storm), and its millions of small
 /// allocations leave the allocator's bookkeeping behind; arrays belong in
 /// datasets.
 pub const MAX_JSON_VALUES: usize = 4 << 20;
@@ -45,10 +45,10 @@ pub const MAX_JSON_VALUES: usize = 4 << 20;
 /// Refuses `bytes` if they hold more than `limit` JSON values, before
 /// anything is parsed or allocated.
 ///
-/// One pass outside strings: a value starts the document, or follows a `,`,
-/// `[` or `:`; so `1 + #, + #[ + #:` bounds the count from above, and
-/// is exact for well-formed JSON without empty containers. The scan stops at
-/// the limit.
+/// One pass outside strings: every value starts the document or follows a
+/// `,`, `[` or `:`, so `1 + #, + #[ + #:` bounds the count from above (it
+/// overcounts: an object's `,` and `:` both count its members; an empty
+/// container counts one). The scan stops at the limit.
 ///
 /// # Examples
 /// ```
