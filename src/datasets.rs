@@ -299,7 +299,7 @@ impl DatasetStore {
             let entry = entry?;
             let name = entry.file_name().to_string_lossy().into_owned();
             if !valid_id(&name) {
-                if name.starts_with(".tmp-") {
+                if name.starts_with(".tmp-") || name.starts_with(".del-") {
                     let _ = std::fs::remove_dir_all(entry.path());
                 }
                 continue;
@@ -388,6 +388,11 @@ impl DatasetStore {
             .ok_or_else(|| StoreError::NotFound(id.into()))?;
         let mut index = lock(&self.index);
         if !index.entries.contains_key(id) {
+            // Deletion renames the directory under this lock: a dataset
+            // whose `meta.json` was read just before is not brought back.
+            if !self.root.join(id).is_dir() {
+                return Err(StoreError::NotFound(id.into()));
+            }
             index.add_found(meta.clone());
         }
         Ok(meta)
@@ -573,7 +578,14 @@ impl DatasetStore {
     }
 
     /// Deletes a dataset (blocking).
+    ///
+    /// The directory is first renamed to `.del-<id>` while the index is
+    /// locked, so that no request (here or in a replica sharing the
+    /// directory) can find the dataset half removed and bring it back
+    /// through [`Self::discover`]; a dataset whose directory another replica
+    /// already removed is [`StoreError::NotFound`].
     pub fn delete_blocking(&self, id: &str) -> Result<(), StoreError> {
+        let doomed = self.root.join(format!(".del-{id}"));
         let meta = {
             let mut index = lock(&self.index);
             let meta = index
@@ -581,10 +593,18 @@ impl DatasetStore {
                 .remove(id)
                 .ok_or_else(|| StoreError::NotFound(id.into()))?;
             index.refund(&meta.tenant, meta.byte_size);
+            self.memory.forget(id);
+            match std::fs::rename(self.root.join(id), &doomed) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    return Err(StoreError::NotFound(id.into()))
+                }
+                Err(e) => return Err(e.into()),
+            }
             meta
         };
-        self.memory.forget(id);
-        std::fs::remove_dir_all(self.root.join(id))?;
+        // Leftovers of a failed removal go at the next start (`.del-`).
+        let _ = std::fs::remove_dir_all(&doomed);
         if meta.expires_at <= Utc::now() {
             return Err(StoreError::NotFound(id.into()));
         }
@@ -665,4 +685,96 @@ where
     tokio::task::spawn_blocking(f)
         .await
         .map_err(|e| StoreError::Io(format!("storage task failed: {e}")))?
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn open(dir: &Path) -> Arc<DatasetStore> {
+        Arc::new(
+            DatasetStore::open(StoreConfig {
+                path_cache_bytes: 0,
+                data_dir: dir.to_path_buf(),
+                quota_bytes: 1 << 30,
+                ttl: Duration::from_secs(3600),
+                cache_bytes: 1 << 20,
+                limits: Limits::default(),
+            })
+            .expect("store"),
+        )
+    }
+
+    fn create(store: &DatasetStore) -> String {
+        let a = ArrayData::F64(ndarray::ArrayD::zeros(vec![2, 2]));
+        store
+            .create_blocking(&a, None, SourceFormat::Npy, &Owner::anonymous())
+            .expect("create")
+            .id
+    }
+
+    /// Two replicas share a data directory: one deletes, the other, which
+    /// knew the dataset, gets a 404 (it used to get an IO error, a 500).
+    #[test]
+    fn a_dataset_deleted_by_a_replica_is_not_found_not_an_io_error() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (a, b) = (open(dir.path()), open(dir.path()));
+        let id = create(&a);
+        assert!(b.meta(&id).is_ok(), "the replica discovers it");
+        a.delete_blocking(&id).expect("delete");
+        assert!(matches!(
+            b.delete_blocking(&id),
+            Err(StoreError::NotFound(_))
+        ));
+        assert_eq!(b.usage().0, 0, "the replica's quota is refunded");
+        assert!(matches!(b.meta(&id), Err(StoreError::NotFound(_))));
+    }
+
+    /// Deletes racing with lookups of the same dataset (two DELETEs at once,
+    /// or a GET during a DELETE): each ends in success or not-found, the
+    /// dataset is never brought back from its half-removed directory, and
+    /// the quota ends at zero. The old order (unindex, then remove the
+    /// directory) let a lookup re-read `meta.json` mid-removal, and the
+    /// second DELETE then failed on the vanished directory.
+    #[test]
+    fn racing_deletes_and_lookups_end_in_success_or_not_found() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let store = open(dir.path());
+        let ids: Vec<String> = (0..300).map(|_| create(&store)).collect();
+        let ids = Arc::new(ids);
+        let workers: Vec<_> = (0..3)
+            .map(|w| {
+                let (store, ids) = (Arc::clone(&store), Arc::clone(&ids));
+                std::thread::spawn(move || {
+                    let mut deleted = 0;
+                    for id in ids.iter() {
+                        if w == 2 {
+                            let _ = store.meta(id);
+                            continue;
+                        }
+                        match store.delete_blocking(id) {
+                            Ok(()) => deleted += 1,
+                            Err(StoreError::NotFound(_)) => {}
+                            Err(e) => panic!("delete {id}: {e}"),
+                        }
+                    }
+                    deleted
+                })
+            })
+            .collect();
+        let deleted: usize = workers.into_iter().map(|w| w.join().expect("worker")).sum();
+        assert_eq!(deleted, ids.len(), "every dataset deleted exactly once");
+        for id in ids.iter() {
+            assert!(
+                matches!(store.meta(id), Err(StoreError::NotFound(_))),
+                "{id}"
+            );
+        }
+        assert_eq!(store.usage().0, 0);
+        let left: Vec<_> = std::fs::read_dir(store.root())
+            .expect("read_dir")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        assert!(left.is_empty(), "nothing left on disk: {left:?}");
+    }
 }
