@@ -346,3 +346,89 @@ async fn bytes_that_contradict_their_content_type_are_named() {
         "{v}"
     );
 }
+
+/// `?dtype=f32` sends a float array in single precision (what the
+/// playground downloads: half the bytes), rounded to nearest; `f64` widens
+/// an f32 array; integer arrays, pictures and meshes refuse it with a 400
+/// that names `dtype`.
+#[tokio::test]
+async fn a_float_array_downloads_in_single_precision() {
+    let app = spawn(|_| {}).await;
+    let values = ArrayD::from_shape_fn(IxDyn(&[70, 90]), |ix| {
+        std::f64::consts::PI * (ix[0] as f64 + 1.0) / (ix[1] as f64 + 3.0)
+    });
+    let id = app.upload(&ArrayData::F64(values.clone())).await;
+    let limits = io::Limits::default();
+    let get = |q: &'static str| {
+        let app = &app;
+        let id = id.clone();
+        async move { app.get(&format!("/v1/datasets/{id}/data?{q}")).await }
+    };
+    let full = get("format=npy").await.bytes().await.expect("bytes");
+    let res = get("format=npy&dtype=f32").await;
+    assert_eq!(res.status(), 200);
+    let half = res.bytes().await.expect("bytes");
+    let decoded = io::decode(&half, Some(io::Format::Npy), &limits).expect("npy");
+    let ArrayData::F32(single) = decoded.array else {
+        panic!("not f32: {:?}", decoded.array.dtype())
+    };
+    assert_eq!(single.shape(), values.shape());
+    for (s, d) in single.iter().zip(values.iter()) {
+        assert_eq!(*s, *d as f32, "rounded to nearest");
+        assert!((f64::from(*s) - d).abs() <= 6e-8 * d.abs());
+    }
+    assert!(
+        half.len() < full.len() * 3 / 5,
+        "{} vs {} bytes",
+        half.len(),
+        full.len()
+    );
+    // As stored: the same bytes as without dtype.
+    let same = get("format=npy&dtype=f64").await.bytes().await.expect("b");
+    assert_eq!(same, full);
+    let json: Value = get("format=json&dtype=f32")
+        .await
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(json["dtype"], "f32");
+    assert_eq!(json["data"][1], f64::from(single[[0, 1]]));
+
+    // An f32 array widens to f64 exactly.
+    let narrow = app.upload(&ArrayData::F32(single.clone())).await;
+    let res = app
+        .get(&format!("/v1/datasets/{narrow}/data?format=npy&dtype=f64"))
+        .await;
+    let wide = io::decode(&res.bytes().await.expect("b"), None, &limits).expect("npy");
+    let ArrayData::F64(wide) = wide.array else {
+        panic!("not f64")
+    };
+    assert!(wide
+        .iter()
+        .zip(single.iter())
+        .all(|(w, s)| *w == f64::from(*s)));
+
+    for (q, fragment) in [
+        ("format=npy&dtype=f16", "use f32 or f64"),
+        ("format=png&dtype=f32", "npy and json"),
+        ("format=tiff&dtype=f32", "npy and json"),
+    ] {
+        let v = problem(get(q).await, 400).await;
+        assert_eq!(v["field"], "dtype", "{q}: {v}");
+        assert!(
+            v["detail"].as_str().expect("detail").contains(fragment),
+            "{q}: {v}"
+        );
+    }
+    let labels = app
+        .upload(&ArrayData::U8(ArrayD::zeros(IxDyn(&[4, 4]))))
+        .await;
+    let v = problem(
+        app.get(&format!("/v1/datasets/{labels}/data?format=npy&dtype=f32"))
+            .await,
+        400,
+    )
+    .await;
+    assert_eq!(v["field"], "dtype");
+    assert!(v["detail"].as_str().expect("detail").contains("u8"), "{v}");
+}
