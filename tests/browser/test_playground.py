@@ -261,8 +261,19 @@ def main():
             assert in_wall, f"path to {t} never crosses the wall's columns"
             outside = [p for p in in_wall if not (DOOR[0] - 1 <= p[0] <= DOOR[1] + 1)]
             assert not outside, f"path to {t} goes through the wall at {outside[:3]}"
+            assert page.js("document.querySelector('#svg polyline.live').dataset.from") == "server"
+            # The preview drawn in the move's own frame (traced in the page on
+            # the downloaded map) is a path too: source to pointer, through the door.
+            preview = page.js("GX.stats.lastPreview")
+            assert preview and all(abs(a - b) <= 0.6 for a, b in zip(preview["end"], t)), preview and preview["end"]
+            pc = densify([tuple(v) for v in preview["points"]])
+            assert math.hypot(pc[0][0] - src[0], pc[0][1] - src[1]) <= 1.0, f"preview to {t} starts at {pc[0]}"
+            assert math.hypot(pc[-1][0] - t[0], pc[-1][1] - t[1]) <= 1.0, f"preview to {t} ends at {pc[-1]}"
+            bad = [p for p in pc if WALL[0] - 0.5 <= p[1] <= WALL[1] + 0.5 and not (DOOR[0] - 1 <= p[0] <= DOOR[1] + 1)]
+            assert not bad, f"preview to {t} goes through the wall at {bad[:3]}"
         page.shot("image-distance-path")
-        page.check_clean(f"pointer moves: {len(targets)} paths drawn, each from the source to the pointer through the door")
+        page.check_clean(f"pointer moves: {len(targets)} paths drawn, each from the source to the pointer through the door, "
+                         f"and each previewed in the move's frame")
 
         # ---- livewire: two way-points, then close the contour ----------------------------
         page.click_cell(200, 200, N, N)
@@ -366,6 +377,7 @@ def main():
         page.wait("GX.imageState.warmed", "the 1024² map", 120)
         first_ms = page.js(f"GX.stats.firstMapMs[{n_first}]")
         start = page.js("GX.stats.pathMs.length")
+        start_preview = page.js("GX.stats.previewMs.length")
         moves = [(900 - 25 * k, 300 + 20 * k) for k in range(30)]
         for t in moves:
             page.move_cell(*t, 1024, 1024)
@@ -376,10 +388,20 @@ def main():
         frame_ms = page.js(f"GX.stats.pathFrameMs.slice({start})")
         frame_gap = page.js("""new Promise(ok => { const t = []; (function f(x) { t.push(x);
             if (t.length < 31) requestAnimationFrame(f); else ok((t[30] - t[0]) / 30); })(performance.now()); })""")
+        preview_ms = page.js(f"GX.stats.previewMs.slice({start_preview})")
+        assert len(preview_ms) == len(moves), f"{len(preview_ms)} previews for {len(moves)} moves"
         fetch_ms = page.js(f"GX.stats.pathFetchMs.slice({start})")
         server_ms = page.js(f"GX.stats.pathServerMs.slice({start})")
         page.shot("image-1024-path")
-        page.check_clean("1024² image: source, 30 pointer moves on the cached map")
+        # Four more first maps (each click is a new source): one sample is
+        # at the mercy of the machine, the median of five less so.
+        for k, c in enumerate([(775, 400), (650, 500), (400, 700), (175, 880)]):
+            page.click_cell(*c, 1024, 1024)
+            page.wait(f"GX.stats.firstMapMs.length >= {n_first + k + 2} && GX.imageState.warmed",
+                      f"the 1024² map from {c}", 120)
+        first_all = page.js(f"GX.stats.firstMapMs.slice({n_first})")
+        first_parts = page.js(f"GX.stats.firstMapParts.slice({n_first})")
+        page.check_clean("1024² image: source, 30 pointer moves on the cached map, 4 more sources")
 
         # ---- mesh: upload, click colours it, path, methods, samples ------------------------
         d.find_element(By.CSS_SELECTOR, "nav button[data-view=mesh]").click()
@@ -511,10 +533,18 @@ def main():
         page.shot("jobs-cancelled")
         page.check_clean(f"jobs: a 1024² job succeeded with its picture, a 4096² job cancelled while running at {progress:.0%}")
 
-        print(f"latency: first distance map of a 1024² image shown {first_ms:.1f} ms after the click")
+        print(f"latency: first distance map of a 1024² image shown {first_ms:.1f} ms after the click; "
+              f"over {len(first_all)} sources median {statistics.median(first_all):.1f} ms "
+              f"(min {min(first_all):.1f}, max {max(first_all):.1f})")
+        for key in ["post", "solve", "download", "draw"]:
+            vals = [p[key] for p in first_parts]
+            print(f"latency:   first map, {key}: median {statistics.median(vals):.1f} ms "
+                  f"({', '.join(f'{v:.0f}' for v in vals)})")
         print(f"latency: pointer move → path drawn on the cached 1024² map: median {statistics.median(ms):.1f} ms, "
               f"min {min(ms):.1f}, max {max(ms):.1f} over {len(ms)} moves (median request round trip "
               f"{statistics.median(fetch_ms):.1f} ms, of which the server's own total {statistics.median(server_ms):.1f} ms)")
+        print(f"latency: pointer move → preview path drawn (traced in the page on the downloaded map, "
+              f"rAF-marked): median {statistics.median(preview_ms):.1f} ms, max {max(preview_ms):.1f}")
         frames = [round(f / frame_gap) for f in frame_ms]
         print(f"latency: pointer move → start of the frame that shows the path: median {statistics.median(frame_ms):.1f} ms "
               f"(frames of {frame_gap:.1f} ms; drawn in the next frame for {frames.count(1)} of {len(frames)} moves, "

@@ -143,11 +143,13 @@ window.GX = window.GX || {};
     const shape = /'shape':\s*\(([^)]*)\)/.exec(header)[1].split(",").map((s) => s.trim()).filter((s) => s).map(Number);
     const off = start + hlen;
     const n = shape.reduce((a, b) => a * b, 1);
-    const body = buf.slice(off);
     const types = { "<f8": Float64Array, "<f4": Float32Array, "<i4": Int32Array, "<i8": BigInt64Array, "|u1": Uint8Array, "|b1": Uint8Array, "<u2": Uint16Array };
     const T = types[descr];
     if (!T) throw new Error("unsupported npy dtype " + descr);
-    return { shape, data: new T(body, 0, n), dtype: descr };
+    // NPY pads its header to 64 bytes, so the values are aligned in place
+    // (no copy); a misaligned file is copied out.
+    const data = off % T.BYTES_PER_ELEMENT === 0 ? new T(buf, off, n) : new T(buf.slice(off), 0, n);
+    return { shape, data, dtype: descr };
   }
 
   /** Shows an error in the status line (and the console as a warning, not an error). */

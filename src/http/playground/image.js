@@ -26,7 +26,7 @@ window.GX = window.GX || {};
   };
   // What the browser test and a curious developer can read.
   GX.imageState = S;
-  GX.stats = { pathMs: [], pathFrameMs: [], pathFetchMs: [], pathServerMs: [], firstMapMs: [], lastPath: null, segment: null };
+  GX.stats = { pathMs: [], pathFrameMs: [], pathFetchMs: [], pathServerMs: [], firstMapMs: [], firstMapParts: [], previewMs: [], lastPreview: null, lastPath: null, segment: null };
 
   // ---- metric -------------------------------------------------------------
 
@@ -317,12 +317,15 @@ window.GX = window.GX || {};
     try {
       const r = await GX.api("POST", "/v1/grid/distance", { json: { ...sec, ...scheme(), sources: [{ point: p }], outputs: { labels: false } } });
       if (S.source !== p) return; // a newer click won
+      const tPost = performance.now();
       S.distanceId = r.distance.id;
       await loadField(r.distance.data_url, "distance");
       if (S.source !== p) return;
+      const tLoad = performance.now();
       drawField(S.field);
       const ms = performance.now() - t0;
       GX.stats.firstMapMs.push(ms);
+      GX.stats.firstMapParts.push({ post: tPost - t0, solve: r.stats.solve_seconds * 1000, download: tLoad - tPost, draw: t0 + ms - tLoad });
       GX.status(`distance map in ${ms.toFixed(0)} ms (solve ${(r.stats.solve_seconds * 1000).toFixed(1)} ms, ${r.stats.stop}); move the pointer`);
       // The server's picture, and the map kept for /v1/grid/paths, side by
       // side. The server keeps the map grid.distance just solved for the
@@ -403,11 +406,13 @@ window.GX = window.GX || {};
 
   /** Fetches a scalar field as NPY for the colour bar and the read-out. */
   async function loadField(dataUrl, label) {
-    const buf = await GX.api("GET", dataUrl + "?format=npy", { as: "arraybuffer", out: label + ".npy" });
+    // Single precision: half the bytes of the stored f64 map (8 MB → 4 MB
+    // at 1024²), and the picture and read-out need no more.
+    const buf = await GX.api("GET", dataUrl + "?format=npy&dtype=f32", { as: "arraybuffer", out: label + ".npy" });
     const a = GX.parseNpy(buf);
     let lo = Infinity, hi = -Infinity;
     for (let k = 0; k < a.data.length; k++) { const v = a.data[k]; if (Number.isFinite(v)) { if (v < lo) lo = v; if (v > hi) hi = v; } }
-    S.field = { data: a.data, h: a.shape[0], w: a.shape[1], min: lo, max: hi, label };
+    S.field = { data: a.data, h: a.shape[0], w: a.shape[1], min: lo, max: hi, label, source: S.source };
     showColourbar(lo, hi, label);
   }
 
@@ -432,10 +437,68 @@ window.GX = window.GX || {};
   }
   function hideColourbar() { $("colourbar-box").style.visibility = "hidden"; }
 
-  /** Asks for the path to `p`; coalesced: one request in flight, only the newest waits. */
+  /**
+   * Asks for the path to `p`; coalesced: one request in flight, only the newest waits.
+   *
+   * The answer takes a round trip (about 10 ms at 1024²), so it can be on
+   * screen one frame after the move at best. Until it lands, the page
+   * draws at once a preview traced on the distance map it already holds
+   * (`previewPath`), in the frame of the move; the server's path replaces
+   * it.
+   */
   function pathTo(p) {
-    S.pending = { p, t: performance.now() };
+    const t = performance.now();
+    S.pending = { p, t };
+    const preview = previewPath(p);
+    if (preview) {
+      if (!S.live) S.live = svgEl("polyline", { class: "live" });
+      S.live.setAttribute("points", pts(preview));
+      S.live.dataset.from = "preview";
+      requestAnimationFrame(() => {
+        GX.stats.previewMs.push(performance.now() - t);
+        GX.stats.lastPreview = { end: p, points: preview };
+      });
+    }
     if (!S.inflight) pump();
+  }
+
+  /**
+   * The minimal path from the source to `p` traced on the map in the page
+   * (the f32 download of the map the server solved): steepest descent from
+   * the cell of `p` to whichever of its 8 neighbours has the smallest U,
+   * until U = 0 (the source's cell). Fast marching freezes every cell after
+   * an upwind neighbour of smaller U, so U has no other local minimum and
+   * the descent ends at the source, in at most one step per cell of the
+   * path (under a millisecond at 1024²). A staircase of cell centres, not
+   * the server's sub-cell path, which replaces it one frame later. `null`
+   * while the map is not this source's, or where `p` is unreached.
+   */
+  function previewPath(p) {
+    const f = S.field;
+    if (!f || f.label !== "distance" || f.source !== S.source) return null;
+    const { w, h, data } = f;
+    let r = Math.min(h - 1, Math.max(0, Math.round(p[0]))), c = Math.min(w - 1, Math.max(0, Math.round(p[1])));
+    let u = data[r * w + c];
+    if (!Number.isFinite(u)) return null;
+    const cells = [p];
+    for (let guard = 0; u > 0 && guard < w * h; guard++) {
+      let best = u, br = -1, bc = -1;
+      for (let dr = -1; dr <= 1; dr++) {
+        const rr = r + dr;
+        if (rr < 0 || rr >= h) continue;
+        for (let dc = -1; dc <= 1; dc++) {
+          const cc = c + dc;
+          if ((dr === 0 && dc === 0) || cc < 0 || cc >= w) continue;
+          const v = data[rr * w + cc];
+          if (v < best) { best = v; br = rr; bc = cc; }
+        }
+      }
+      if (br < 0) break; // a flat spot of the f32 rounding: stop here
+      r = br; c = bc; u = best;
+      cells.push([r, c]);
+    }
+    cells.push(S.source);
+    return cells.reverse();
   }
 
   async function pump() {
@@ -456,7 +519,10 @@ window.GX = window.GX || {};
         if (S.source !== src) continue;
         const path = r.paths[0];
         if (!S.live) S.live = svgEl("polyline", { class: "live" });
+        // A newer move's preview stays until its own answer.
+        if (S.pending) continue;
         S.live.setAttribute("points", pts(path.points));
+        S.live.dataset.from = "server";
         // Drawn: the next frame's rAF callback (its argument is the frame's
         // start, the time the frame that shows the path began).
         const frame = await new Promise((ok) => requestAnimationFrame(ok));
