@@ -358,36 +358,38 @@ window.GX = window.GX || {};
    * (light colours) or white (dark ones).
    */
   function fieldPixels(f) {
-    const n = f.h * f.w, v = f.data, span = f.max - f.min;
-    const lut = new Uint8ClampedArray(3 * 1024);
+    const n = f.h * f.w, w = f.w, v = f.data, min = f.min, span = f.max - f.min;
+    // Each colour of the map and its iso-line colour, packed as the four
+    // bytes R, G, B, A of a pixel (little-endian words: one store a pixel).
+    const pack = (c) => ((255 << 24) | (c[2] << 16) | (c[1] << 8) | c[0]) >>> 0;
+    const fill = new Uint32Array(1024), line = new Uint32Array(1024);
     for (let k = 0; k < 1024; k++) {
-      const c = GX.viridis(k / 1023);
-      lut[3 * k] = Math.round(c[0]); lut[3 * k + 1] = Math.round(c[1]); lut[3 * k + 2] = Math.round(c[2]);
+      const c = GX.viridis(k / 1023).map((x) => Math.min(255, Math.max(0, Math.round(x))));
+      const luma = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+      const t = luma >= 100 ? 0 : 255;
+      fill[k] = pack(c);
+      line[k] = pack(c.map((x) => Math.round(x * 0.4 + t * 0.6)));
     }
-    const px = new Uint8ClampedArray(4 * n);
-    const band = new Float64Array(n);
+    const px = new Uint8ClampedArray(4 * n), out = new Uint32Array(px.buffer);
+    const colour = new Uint16Array(n); // the colour index of each finite cell
+    const band = new Int8Array(n); // its iso band (at most 10), −1 where not finite
+    const grey = pack([128, 128, 128]), black = pack([0, 0, 0]);
     const step = span / 11, top = Math.max(Math.ceil(span / step) - 1, 0);
     for (let i = 0; i < n; i++) {
       const x = v[i];
-      let r = 128, g = 128, b = 128;
-      if (Number.isNaN(x)) { r = g = b = 0; } else if (x !== Infinity) {
-        const k = span > 0 ? Math.round(Math.min(1, Math.max(0, (x - f.min) / span)) * 1023) : 0;
-        r = lut[3 * k]; g = lut[3 * k + 1]; b = lut[3 * k + 2];
-      }
-      px[4 * i] = r; px[4 * i + 1] = g; px[4 * i + 2] = b; px[4 * i + 3] = 255;
-      band[i] = Number.isFinite(x) && step > 0 ? Math.min(Math.floor(Math.max((x - f.min) / step, 0)), top) : NaN;
+      if (x === Infinity) { out[i] = grey; band[i] = -1; continue; }
+      if (Number.isNaN(x)) { out[i] = black; band[i] = -1; continue; }
+      const k = span > 0 ? Math.round(Math.min(1, Math.max(0, (x - min) / span)) * 1023) : 0;
+      out[i] = fill[k];
+      colour[i] = k;
+      band[i] = step > 0 && x !== -Infinity ? Math.min(Math.floor(Math.max((x - min) / step, 0)), top) : -1;
     }
     if (step > 0) {
-      for (let i = 0; i < n; i++) {
+      for (let i = 0, c = 0; i < n; i++, c = c + 1 === w ? 0 : c + 1) {
         const a = band[i];
-        if (Number.isNaN(a)) continue;
-        const c = i % f.w;
-        const right = c + 1 < f.w ? band[i + 1] : NaN, down = i + f.w < n ? band[i + f.w] : NaN;
-        if ((!Number.isNaN(right) && right !== a) || (!Number.isNaN(down) && down !== a)) {
-          const luma = 0.2126 * px[4 * i] + 0.7152 * px[4 * i + 1] + 0.0722 * px[4 * i + 2];
-          const t = luma >= 100 ? 0 : 255;
-          for (let q = 0; q < 3; q++) px[4 * i + q] = Math.round(px[4 * i + q] * 0.4 + t * 0.6);
-        }
+        if (a < 0) continue;
+        const right = c + 1 < w ? band[i + 1] : -1, down = i + w < n ? band[i + w] : -1;
+        if ((right >= 0 && right !== a) || (down >= 0 && down !== a)) out[i] = line[colour[i]];
       }
     }
     return px;
