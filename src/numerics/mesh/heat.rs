@@ -41,10 +41,10 @@
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Mat, Side};
 
-use super::dijkstra::dijkstra_distance;
+use super::dijkstra::dijkstra_on_graph;
 use super::intrinsic::{cotangents, layout, triangle_area, IntrinsicMesh, DEFAULT_MOLLIFY};
 use super::sources::VertexGraph;
 use super::{norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
@@ -148,6 +148,94 @@ fn numerical(what: &str, e: impl std::fmt::Debug) -> MeshSolveError {
     MeshSolveError::Numerical(format!("{what}: {e:?}"))
 }
 
+/// The lower triangle of a cotangent Laplacian in compressed columns,
+/// assembled without a global sort: the `3F` corner weights are bucketed
+/// by column (counting sort on `min(i, j)`), each column's few rows sorted
+/// in place and the weights of an edge shared by two faces summed. Column
+/// `j` holds its diagonal first, then the rows `i > j` joined to `j` by an
+/// edge, ascending (what faer's compressed format asks for).
+#[derive(Debug)]
+struct LowerLaplacian {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// `L_ij` at each off-diagonal slot (0 at the diagonal slots).
+    off: Vec<f64>,
+    /// `L_jj = −Σ_i L_ij` per vertex.
+    diag: Vec<f64>,
+}
+
+impl LowerLaplacian {
+    /// From one `(i, j, w)` per face corner (`L_ij = L_ji = −w`, and `w`
+    /// added to `L_ii` and `L_jj`); `i ≠ j`, both below `n`.
+    fn assemble(n: usize, edges: &[(u32, u32, f64)]) -> Self {
+        let mut diag = vec![0.0; n];
+        let mut start = vec![0usize; n + 1];
+        for &(i, j, w) in edges {
+            diag[i as usize] += w;
+            diag[j as usize] += w;
+            start[i.min(j) as usize + 1] += 1;
+        }
+        for c in 0..n {
+            start[c + 1] += start[c];
+        }
+        let mut next = start.clone();
+        let mut bucket = vec![(0u32, 0.0f64); edges.len()];
+        for &(i, j, w) in edges {
+            let c = i.min(j) as usize;
+            bucket[next[c]] = (i.max(j), -w);
+            next[c] += 1;
+        }
+        drop(next);
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::with_capacity(n + edges.len() / 2 + 1);
+        let mut off = Vec::with_capacity(row_idx.capacity());
+        for c in 0..n {
+            col_ptr.push(row_idx.len());
+            row_idx.push(c);
+            off.push(0.0);
+            let rows = &mut bucket[start[c]..start[c + 1]];
+            rows.sort_unstable_by_key(|e| e.0);
+            let first = row_idx.len();
+            for &(r, w) in rows.iter() {
+                if row_idx.len() > first && row_idx[row_idx.len() - 1] == r as usize {
+                    if let Some(last) = off.last_mut() {
+                        *last += w;
+                    }
+                } else {
+                    row_idx.push(r as usize);
+                    off.push(w);
+                }
+            }
+        }
+        col_ptr.push(row_idx.len());
+        Self {
+            col_ptr,
+            row_idx,
+            off,
+            diag,
+        }
+    }
+
+    /// The lower triangle of `s L + D`, `D` diagonal (`d(j)` at `(j, j)`).
+    fn matrix(&self, s: f64, d: &dyn Fn(usize) -> f64) -> SparseColMat<usize, f64> {
+        let mut values = Vec::with_capacity(self.row_idx.len());
+        for c in 0..self.diag.len() {
+            let slots = self.col_ptr[c]..self.col_ptr[c + 1];
+            values.push(s * self.diag[c] + d(c));
+            values.extend(self.off[slots.start + 1..slots.end].iter().map(|w| s * w));
+        }
+        let n = self.diag.len();
+        let symbolic = SymbolicSparseColMat::new_checked(
+            n,
+            n,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
+        SparseColMat::new(symbolic, values)
+    }
+}
+
 impl HeatSolver {
     /// Assembles `M`, `L` and factors `M + tL` and `L + εM`.
     pub fn new(
@@ -168,6 +256,7 @@ impl HeatSolver {
             return Err(MeshSolveError::Numerical("mean edge length is zero".into()));
         }
         let started = std::time::Instant::now();
+        let graph = VertexGraph::new(mesh);
         let mut t = options.m * h * h;
         if options.underflow_guard {
             // One seed per component: eccentricities of the component roots.
@@ -180,7 +269,7 @@ impl HeatSolver {
                     roots.push(SurfacePoint::Vertex(v as u32));
                 }
             }
-            let d = dijkstra_distance(mesh, &roots, None, f64::INFINITY, control)?;
+            let d = dijkstra_on_graph(mesh, &graph, &roots, None, f64::INFINITY, control)?;
             let ecc = d
                 .distance
                 .iter()
@@ -197,7 +286,8 @@ impl HeatSolver {
         let scale = tri.scale;
         let mut mass = vec![0.0; n];
         let mut faces = Vec::with_capacity(tri.faces.len());
-        let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(9 * tri.faces.len());
+        // One (i, j, w) per corner: the edge opposite the corner, L_ij = −w.
+        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(3 * tri.faces.len());
         for (f, &l) in tri.faces.iter().zip(&tri.lengths) {
             let area = triangle_area(l[0], l[1], l[2]);
             if !(area.is_finite() && area > 0.0) {
@@ -207,15 +297,10 @@ impl HeatSolver {
             for k in 0..3 {
                 mass[f[k] as usize] += scale * area / 3.0;
                 // The edge opposite corner k joins the other two corners.
-                let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
-                if i == j {
-                    continue;
+                let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+                if i != j {
+                    edges.push((i, j, 0.5 * scale * c[k]));
                 }
-                let w = 0.5 * scale * c[k];
-                entries.push((i, j, -w));
-                entries.push((j, i, -w));
-                entries.push((i, i, w));
-                entries.push((j, j, w));
             }
             faces.push(PlanarFace {
                 vertices: *f,
@@ -223,21 +308,13 @@ impl HeatSolver {
                 cot: c,
             });
         }
-        // Every vertex gets a diagonal entry (isolated vertices included).
-        for (v, m) in mass.iter_mut().enumerate() {
+        for m in mass.iter_mut() {
             if *m <= 0.0 {
                 *m = h * h * 1e-3;
             }
-            entries.push((v, v, 0.0));
         }
-        entries.sort_unstable_by_key(|a| (a.1, a.0));
-        let mut lap: Vec<(usize, usize, f64)> = Vec::with_capacity(entries.len() / 2);
-        for (i, j, w) in entries {
-            match lap.last_mut() {
-                Some(last) if last.0 == i && last.1 == j => last.2 += w,
-                _ => lap.push((i, j, w)),
-            }
-        }
+        let lap = LowerLaplacian::assemble(n, &edges);
+        drop(edges);
         if control.is_cancelled() {
             return Err(MeshSolveError::Cancelled);
         }
@@ -258,17 +335,8 @@ impl HeatSolver {
                 pin[v] = mass[v] / (h * h);
             }
         }
-        let build = |diag: &dyn Fn(usize) -> f64, s: f64| {
-            let trip: Vec<Triplet<usize, usize, f64>> = lap
-                .iter()
-                .filter(|e| e.0 >= e.1)
-                .map(|&(i, j, w)| Triplet::new(i, j, s * w + if i == j { diag(i) } else { 0.0 }))
-                .collect();
-            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip)
-                .map_err(|e| numerical("assembly", e))
-        };
-        let a = build(&|i| mass[i], t)?;
-        let b = build(&|i| eps * mass[i] + pin[i], 1.0)?;
+        let a = lap.matrix(t, &|i| mass[i]);
+        let b = lap.matrix(1.0, &|i| eps * mass[i] + pin[i]);
         let laplacian_seconds = started.elapsed().as_secs_f64() - guard_seconds;
         let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
             .map_err(|e| numerical("symbolic factorisation", e))?;
@@ -303,7 +371,7 @@ impl HeatSolver {
             poisson,
             component: topo.component.clone(),
             components: topo.components,
-            graph: VertexGraph::new(mesh),
+            graph,
         })
     }
 
@@ -634,5 +702,62 @@ impl HeatSolver {
             }
         }
         labels
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bucketed assembly equals the dense sum of the corner weights:
+    /// shared edges summed, the diagonal first and rows ascending in every
+    /// column, every vertex with its diagonal (an isolated one too).
+    #[test]
+    fn the_lower_laplacian_is_the_sum_of_its_corner_weights() {
+        let n = 9;
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            seed >> 33
+        };
+        // Vertex 8 has no edge; the others get repeated edges in both orders.
+        let edges: Vec<(u32, u32, f64)> = (0..60)
+            .filter_map(|_| {
+                let (i, j) = ((next() % 8) as u32, (next() % 8) as u32);
+                (i != j).then(|| (i, j, (next() % 1000) as f64 / 100.0 - 2.0))
+            })
+            .collect();
+        let mut dense = vec![vec![0.0f64; n]; n];
+        for &(i, j, w) in &edges {
+            let (i, j) = (i as usize, j as usize);
+            dense[i][j] -= w;
+            dense[j][i] -= w;
+            dense[i][i] += w;
+            dense[j][j] += w;
+        }
+        let lap = LowerLaplacian::assemble(n, &edges);
+        let m = lap.matrix(2.0, &|j| j as f64);
+        let (sym, values) = m.parts();
+        let mut seen = vec![vec![0.0f64; n]; n];
+        for c in 0..n {
+            let rows = sym.row_idx_of_col_raw(c);
+            assert_eq!(rows[0], c, "column {c} starts at its diagonal");
+            assert!(rows.windows(2).all(|w| w[0] < w[1]), "column {c}: {rows:?}");
+            for (k, &r) in rows.iter().enumerate() {
+                seen[r][c] = values[sym.col_range(c).start + k];
+            }
+        }
+        for i in 0..n {
+            for j in 0..=i {
+                let want = 2.0 * dense[i][j] + if i == j { j as f64 } else { 0.0 };
+                assert!(
+                    (seen[i][j] - want).abs() < 1e-12,
+                    "({i}, {j}): {} vs {want}",
+                    seen[i][j]
+                );
+            }
+        }
     }
 }
