@@ -21,6 +21,19 @@ pub fn dijkstra_distance(
 ) -> Result<MeshDistance, MeshSolveError> {
     check_weights(mesh, weights)?;
     let graph = VertexGraph::new(mesh);
+    dijkstra_on_graph(mesh, &graph, sources, weights, max_distance, control)
+}
+
+/// [`dijkstra_distance`] on the mesh's edge graph already built.
+pub(crate) fn dijkstra_on_graph(
+    mesh: &TriMesh,
+    graph: &VertexGraph,
+    sources: &[SurfacePoint],
+    weights: Option<&[f64]>,
+    max_distance: f64,
+    control: &Control<'_>,
+) -> Result<MeshDistance, MeshSolveError> {
+    check_weights(mesh, weights)?;
     let n = mesh.num_vertices();
     let mut out = MeshDistance {
         distance: vec![f64::INFINITY; n],

@@ -96,29 +96,49 @@ pub struct VertexGraph {
 }
 
 impl VertexGraph {
-    /// Builds the graph of the mesh's edges in `O(F log F)`.
+    /// Builds the graph of the mesh's edges in `O(F)`: the six directed
+    /// half-pairs of every face bucketed by their first vertex (a counting
+    /// sort), then each vertex's few neighbours sorted and deduplicated.
     pub fn new(mesh: &TriMesh) -> Self {
         let n = mesh.num_vertices();
-        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(6 * mesh.num_faces());
+        let mut start = vec![0u32; n + 1];
+        for f in mesh.faces() {
+            for &v in f {
+                start[v as usize + 1] += 2;
+            }
+        }
+        for v in 0..n {
+            start[v + 1] += start[v];
+        }
+        let mut next = start.clone();
+        let mut bucket = vec![0u32; start[n] as usize];
         for f in mesh.faces() {
             for k in 0..3 {
                 let (a, b) = (f[k], f[(k + 1) % 3]);
-                pairs.push((a, b));
-                pairs.push((b, a));
+                bucket[next[a as usize] as usize] = b;
+                next[a as usize] += 1;
+                bucket[next[b as usize] as usize] = a;
+                next[b as usize] += 1;
             }
         }
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut offsets = vec![0u32; n + 1];
-        for &(a, _) in &pairs {
-            offsets[a as usize + 1] += 1;
-        }
+        drop(next);
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut neighbours = Vec::with_capacity(bucket.len() / 2);
         for v in 0..n {
-            offsets[v + 1] += offsets[v];
+            offsets.push(neighbours.len() as u32);
+            let row = &mut bucket[start[v] as usize..start[v + 1] as usize];
+            row.sort_unstable();
+            let first = neighbours.len();
+            for &u in row.iter() {
+                if neighbours.len() == first || neighbours[neighbours.len() - 1] != u {
+                    neighbours.push(u);
+                }
+            }
         }
+        offsets.push(neighbours.len() as u32);
         Self {
             offsets,
-            neighbours: pairs.into_iter().map(|(_, b)| b).collect(),
+            neighbours,
         }
     }
 
