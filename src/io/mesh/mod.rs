@@ -20,8 +20,6 @@ pub mod ply;
 pub mod stl;
 pub mod write;
 
-use std::collections::HashSet;
-
 use serde::{Deserialize, Serialize};
 
 use crate::numerics::mesh::{cross, norm, sub, MeshError, Topology, TriMesh};
@@ -315,9 +313,7 @@ impl RawMesh {
         crate::numerics::mesh::check_scale(&self.positions, &self.triangles)?;
         let input_faces = self.triangles.len();
         let mut degenerate = 0;
-        let mut duplicate = 0;
-        let mut seen: HashSet<[u32; 3]> = HashSet::with_capacity(self.triangles.len());
-        let mut faces = Vec::with_capacity(self.triangles.len());
+        let mut kept = Vec::with_capacity(self.triangles.len());
         for f in self.triangles {
             if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
                 degenerate += 1;
@@ -331,14 +327,15 @@ impl RawMesh {
                 degenerate += 1;
                 continue;
             }
-            let mut key = f;
-            key.sort_unstable();
-            if !seen.insert(key) {
-                duplicate += 1;
-                continue;
-            }
-            faces.push(f);
+            kept.push(f);
         }
+        let first = first_of_each_vertex_set(&kept, self.positions.len());
+        let duplicate = kept.len() - first.iter().filter(|&&b| b).count();
+        let faces: Vec<[u32; 3]> = kept
+            .into_iter()
+            .zip(first)
+            .filter_map(|(f, keep)| keep.then_some(f))
+            .collect();
         let mesh = TriMesh::new(self.positions, faces)?;
         mesh.check_representable()?;
         let topology = Topology::new(&mesh);
@@ -381,6 +378,44 @@ pub fn report_of(mesh: &TriMesh, topology: &Topology) -> MeshReport {
 }
 
 /// Number of connected components of the graph of boundary edges.
+/// For each triangle, whether it is the first with its set of vertices (a
+/// later one with the same three vertices, in any order, is a duplicate):
+/// the triangles bucketed by their lowest vertex (a counting sort), each
+/// bucket sorted by the other two and its index. `O(F)` plus sorts of a
+/// few entries, and no hashing an upload could make collide.
+fn first_of_each_vertex_set(faces: &[[u32; 3]], n: usize) -> Vec<bool> {
+    let key = |f: &[u32; 3]| {
+        let mut k = *f;
+        k.sort_unstable();
+        k
+    };
+    let mut start = vec![0usize; n + 1];
+    for f in faces {
+        start[key(f)[0] as usize + 1] += 1;
+    }
+    for v in 0..n {
+        start[v + 1] += start[v];
+    }
+    let mut next = start.clone();
+    let mut bucket = vec![(0u32, 0u32, 0usize); faces.len()];
+    for (i, f) in faces.iter().enumerate() {
+        let k = key(f);
+        bucket[next[k[0] as usize]] = (k[1], k[2], i);
+        next[k[0] as usize] += 1;
+    }
+    let mut first = vec![true; faces.len()];
+    for v in 0..n {
+        let row = &mut bucket[start[v]..start[v + 1]];
+        row.sort_unstable();
+        for w in row.windows(2) {
+            if (w[0].0, w[0].1) == (w[1].0, w[1].1) {
+                first[w[1].2] = false;
+            }
+        }
+    }
+    first
+}
+
 fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> usize {
     let n = mesh.num_vertices();
     let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -392,22 +427,44 @@ fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> usize {
         x
     }
     let mut on = vec![false; n];
-    // Count single-face edges only (non-manifold ones also have NONE opposites).
-    let mut count = std::collections::HashMap::<(u32, u32), u32>::new();
+    // Count single-face edges only (non-manifold ones also have NONE
+    // opposites): every face's edges bucketed by their lower vertex (a
+    // counting sort), each bucket's upper vertices sorted, runs of one kept.
+    let mut start = vec![0usize; n + 1];
+    for f in mesh.faces() {
+        for k in 0..3 {
+            start[f[k].min(f[(k + 1) % 3]) as usize + 1] += 1;
+        }
+    }
+    for v in 0..n {
+        start[v + 1] += start[v];
+    }
+    let mut next = start.clone();
+    let mut upper = vec![0u32; start[n]];
     for f in mesh.faces() {
         for k in 0..3 {
             let (a, b) = (f[k], f[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_default() += 1;
+            let lo = a.min(b) as usize;
+            upper[next[lo]] = a.max(b);
+            next[lo] += 1;
         }
     }
-    for (&(a, b), &c) in &count {
-        if c == 1 {
-            on[a as usize] = true;
-            on[b as usize] = true;
-            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-            if ra != rb {
-                parent[ra as usize] = rb;
+    for a in 0..n {
+        let row = &mut upper[start[a]..start[a + 1]];
+        row.sort_unstable();
+        let mut k = 0;
+        while k < row.len() {
+            let b = row[k];
+            let run = row[k..].iter().take_while(|&&x| x == b).count();
+            if run == 1 {
+                on[a] = true;
+                on[b as usize] = true;
+                let (ra, rb) = (find(&mut parent, a as u32), find(&mut parent, b));
+                if ra != rb {
+                    parent[ra as usize] = rb;
+                }
             }
+            k += run;
         }
     }
     let _ = topo;
