@@ -1,8 +1,9 @@
-//! PLY (ASCII, binary little and big endian) through `ply-rs-bw`: the
-//! `vertex` element's `x y z` (any numeric type) and the `face` element's
-//! `vertex_indices` (or `vertex_index`) list. Other elements and properties
-//! are read and ignored. The header is parsed first and its element counts
-//! are checked against the limits before the payload is read.
+//! PLY (ASCII, binary little and big endian): the `vertex` element's
+//! `x y z` (any numeric type) and the `face` element's `vertex_indices` (or
+//! `vertex_index`) list. Other elements and properties are read and
+//! ignored. The header is parsed first (by `ply-rs-bw`) and its element
+//! counts are checked against the limits before the payload is read; a
+//! binary payload is read by `ply-rs-bw`, an ASCII one here (`ascii`).
 
 use std::io::{BufReader, Cursor, Seek};
 
