@@ -38,6 +38,7 @@
 //! * [`shape`]: distance matrices, MDS, SMACOF, Isomap and canonical forms (chapter 5).
 
 pub mod anisotropic;
+pub mod buckets;
 pub mod contours;
 pub mod control;
 pub mod edt;

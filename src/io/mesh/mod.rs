@@ -22,6 +22,7 @@ pub mod write;
 
 use serde::{Deserialize, Serialize};
 
+use crate::numerics::buckets::bucket;
 use crate::numerics::mesh::{cross, norm, sub, MeshError, Topology, TriMesh};
 
 /// A mesh file format.
@@ -389,20 +390,13 @@ fn first_of_each_vertex_set(faces: &[[u32; 3]], n: usize) -> Vec<bool> {
         k.sort_unstable();
         k
     };
-    let mut start = vec![0usize; n + 1];
-    for f in faces {
-        start[key(f)[0] as usize + 1] += 1;
-    }
-    for v in 0..n {
-        start[v + 1] += start[v];
-    }
-    let mut next = start.clone();
-    let mut bucket = vec![(0u32, 0u32, 0usize); faces.len()];
-    for (i, f) in faces.iter().enumerate() {
-        let k = key(f);
-        bucket[next[k[0] as usize]] = (k[1], k[2], i);
-        next[k[0] as usize] += 1;
-    }
+    let (start, mut bucket) = bucket(
+        n,
+        faces.iter().enumerate().map(|(i, f)| {
+            let k = key(f);
+            (k[0] as usize, (k[1], k[2], i))
+        }),
+    );
     let mut first = vec![true; faces.len()];
     for v in 0..n {
         let row = &mut bucket[start[v]..start[v + 1]];
@@ -430,25 +424,13 @@ fn boundary_loops(mesh: &TriMesh, topo: &Topology) -> usize {
     // Count single-face edges only (non-manifold ones also have NONE
     // opposites): every face's edges bucketed by their lower vertex (a
     // counting sort), each bucket's upper vertices sorted, runs of one kept.
-    let mut start = vec![0usize; n + 1];
-    for f in mesh.faces() {
-        for k in 0..3 {
-            start[f[k].min(f[(k + 1) % 3]) as usize + 1] += 1;
-        }
-    }
-    for v in 0..n {
-        start[v + 1] += start[v];
-    }
-    let mut next = start.clone();
-    let mut upper = vec![0u32; start[n]];
-    for f in mesh.faces() {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            let lo = a.min(b) as usize;
-            upper[next[lo]] = a.max(b);
-            next[lo] += 1;
-        }
-    }
+    let (start, mut upper) = bucket(
+        n,
+        mesh.faces().iter().flat_map(|&[a, b, c]| {
+            let edge = |p: u32, q: u32| (p.min(q) as usize, p.max(q));
+            [edge(a, b), edge(b, c), edge(c, a)]
+        }),
+    );
     for a in 0..n {
         let row = &mut upper[start[a]..start[a + 1]];
         row.sort_unstable();

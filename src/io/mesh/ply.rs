@@ -323,17 +323,13 @@ mod ascii {
         })
     }
 
-    /// One integer list item of type `t` (`None` for a float list or a bad value).
+    /// One integer list item of type `t` (`None` for a float list or a bad
+    /// value); every integer type is exact in `f64`.
     fn index(t: &ScalarType, s: &str) -> Option<i64> {
-        Some(match t {
-            ScalarType::Char => s.parse::<i8>().ok()?.into(),
-            ScalarType::UChar => s.parse::<u8>().ok()?.into(),
-            ScalarType::Short => s.parse::<i16>().ok()?.into(),
-            ScalarType::UShort => s.parse::<u16>().ok()?.into(),
-            ScalarType::Int => s.parse::<i32>().ok()?.into(),
-            ScalarType::UInt => s.parse::<u32>().ok()?.into(),
-            ScalarType::Float | ScalarType::Double => return None,
-        })
+        match t {
+            ScalarType::Float | ScalarType::Double => None,
+            _ => scalar(t, s).map(|v| v as i64),
+        }
     }
 
     pub(super) fn read_body(

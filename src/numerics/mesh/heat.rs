@@ -48,6 +48,7 @@ use super::dijkstra::dijkstra_on_graph;
 use super::intrinsic::{cotangents, layout, triangle_area, IntrinsicMesh, DEFAULT_MOLLIFY};
 use super::sources::VertexGraph;
 use super::{norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
+use crate::numerics::buckets::bucket;
 use crate::numerics::Control;
 
 /// Which Laplacian the heat method assembles.
@@ -169,23 +170,16 @@ impl LowerLaplacian {
     /// added to `L_ii` and `L_jj`); `i ≠ j`, both below `n`.
     fn assemble(n: usize, edges: &[(u32, u32, f64)]) -> Self {
         let mut diag = vec![0.0; n];
-        let mut start = vec![0usize; n + 1];
         for &(i, j, w) in edges {
             diag[i as usize] += w;
             diag[j as usize] += w;
-            start[i.min(j) as usize + 1] += 1;
         }
-        for c in 0..n {
-            start[c + 1] += start[c];
-        }
-        let mut next = start.clone();
-        let mut bucket = vec![(0u32, 0.0f64); edges.len()];
-        for &(i, j, w) in edges {
-            let c = i.min(j) as usize;
-            bucket[next[c]] = (i.max(j), -w);
-            next[c] += 1;
-        }
-        drop(next);
+        let (start, mut bucket) = bucket(
+            n,
+            edges
+                .iter()
+                .map(|&(i, j, w)| (i.min(j) as usize, (i.max(j), -w))),
+        );
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::with_capacity(n + edges.len() / 2 + 1);
         let mut off = Vec::with_capacity(row_idx.capacity());

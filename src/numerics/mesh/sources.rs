@@ -2,6 +2,7 @@
 //! one-ring graph.
 
 use super::{norm, sub, MeshSolveError, SurfacePoint, TriMesh};
+use crate::numerics::buckets::bucket;
 
 /// A vertex value fixed before propagation: vertex, distance, source label.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,32 +102,18 @@ impl VertexGraph {
     /// sort), then each vertex's few neighbours sorted and deduplicated.
     pub fn new(mesh: &TriMesh) -> Self {
         let n = mesh.num_vertices();
-        let mut start = vec![0u32; n + 1];
-        for f in mesh.faces() {
-            for &v in f {
-                start[v as usize + 1] += 2;
-            }
-        }
-        for v in 0..n {
-            start[v + 1] += start[v];
-        }
-        let mut next = start.clone();
-        let mut bucket = vec![0u32; start[n] as usize];
-        for f in mesh.faces() {
-            for k in 0..3 {
-                let (a, b) = (f[k], f[(k + 1) % 3]);
-                bucket[next[a as usize] as usize] = b;
-                next[a as usize] += 1;
-                bucket[next[b as usize] as usize] = a;
-                next[b as usize] += 1;
-            }
-        }
-        drop(next);
+        let (start, mut bucket) = bucket(
+            n,
+            mesh.faces().iter().flat_map(|&[a, b, c]| {
+                let (ua, ub, uc) = (a as usize, b as usize, c as usize);
+                [(ua, b), (ub, a), (ub, c), (uc, b), (uc, a), (ua, c)]
+            }),
+        );
         let mut offsets = Vec::with_capacity(n + 1);
         let mut neighbours = Vec::with_capacity(bucket.len() / 2);
         for v in 0..n {
             offsets.push(neighbours.len() as u32);
-            let row = &mut bucket[start[v] as usize..start[v + 1] as usize];
+            let row = &mut bucket[start[v]..start[v + 1]];
             row.sort_unstable();
             let first = neighbours.len();
             for &u in row.iter() {
