@@ -6,7 +6,7 @@ mod jobs_support;
 
 use std::time::{Duration, Instant};
 
-use geodex::io::ArrayData;
+use geodex::io::{self, ArrayData};
 use jobs_support::{assert_same, attempt_dirs, compute, request, wavy_cost, Server, N};
 use serde_json::{json, Value};
 
@@ -82,6 +82,21 @@ async fn sqlite_jobs_survive_sigkill_and_restart() {
     for (k, id) in ids.iter().enumerate() {
         let got = b.result(id, "distance").await;
         assert_same(&got, &refs[k], id);
+        if k == 0 {
+            // As for datasets: `?dtype=f32` sends the result in single precision.
+            let r = b
+                .get(&format!("/v1/jobs/{id}/results/distance?dtype=f32"))
+                .await;
+            assert_eq!(r.status(), 200);
+            let bytes = r.bytes().await.expect("bytes");
+            let single = io::decode(&bytes, Some(io::Format::Npy), &io::Limits::default())
+                .expect("npy")
+                .array;
+            let (ArrayData::F32(single), ArrayData::F64(full)) = (&single, &got) else {
+                panic!("{:?} / {:?}", single.dtype(), got.dtype())
+            };
+            assert!(single.iter().zip(full.iter()).all(|(s, d)| *s == *d as f32));
+        }
         // One result per job: objects of the killed attempt were removed.
         assert_eq!(attempt_dirs(&dir.path().join("results"), id), 1, "{id}");
     }

@@ -194,9 +194,28 @@ fn parse_pair(name: &str, v: &str, what: &str) -> Result<(usize, usize), ApiErro
 }
 
 impl DataQuery {
+    /// The element type a download in `format` converts to (`None`: as
+    /// stored): `dtype`, for npy and json only, checked against the array's
+    /// `stored` type. Datasets and job results both ask it.
+    pub fn conversion(
+        &self,
+        format: OutputFormat,
+        stored: DType,
+    ) -> Result<Option<DType>, ApiError> {
+        match format {
+            OutputFormat::Npy | OutputFormat::Json => self.download_dtype(stored),
+            _ if self.dtype.is_some() => Err(ApiError::bad_request(
+                "dtype",
+                "dtype applies to the npy and json downloads only; leave it out for pictures \
+                 and TIFF (which is always f32)",
+            )),
+            _ => Ok(None),
+        }
+    }
+
     /// The float element type asked for by `dtype` (`None`: as stored),
     /// checked against the array's `stored` type.
-    pub fn download_dtype(&self, stored: DType) -> Result<Option<DType>, ApiError> {
+    fn download_dtype(&self, stored: DType) -> Result<Option<DType>, ApiError> {
         let Some(v) = &self.dtype else {
             return Ok(None);
         };
@@ -1041,17 +1060,7 @@ pub async fn get_data(
         .await;
     }
     let format = negotiate(query.format, &headers);
-    let convert = match format {
-        OutputFormat::Npy | OutputFormat::Json => query.download_dtype(meta.dtype)?,
-        _ if query.dtype.is_some() => {
-            return Err(ApiError::bad_request(
-                "dtype",
-                "dtype applies to the npy and json downloads only; leave it out for pictures \
-                 and TIFF (which is always f32)",
-            ))
-        }
-        _ => None,
-    };
+    let convert = query.conversion(format, meta.dtype)?;
     let store = state.store.clone();
     let id = path.id.clone();
     let (bytes, media) = if let Some(dtype) = convert {
@@ -1092,7 +1101,7 @@ pub async fn get_data(
 }
 
 /// A float array in the float type `dtype` (f64 → f32 rounds to nearest).
-fn cast_float(array: &ArrayData, dtype: DType) -> ArrayData {
+pub fn cast_float(array: &ArrayData, dtype: DType) -> ArrayData {
     match (array, dtype) {
         (ArrayData::F64(a), DType::F32) => ArrayData::F32(a.mapv(|v| v as f32)),
         (ArrayData::F32(a), DType::F64) => ArrayData::F64(a.mapv(f64::from)),

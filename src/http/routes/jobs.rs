@@ -16,7 +16,7 @@ use utoipa::{IntoParams, ToSchema};
 
 use crate::http::auth::caller;
 use crate::http::extract::{ApiJson, ApiPath, ApiQuery};
-use crate::http::routes::datasets::{encode, negotiate, DataQuery, OutputFormat};
+use crate::http::routes::datasets::{cast_float, encode, negotiate, DataQuery, OutputFormat};
 use crate::http::AppState;
 use crate::io::{self, Format};
 use crate::jobs::{Job, JobState, Jobs, Priority, SubmitJob};
@@ -387,13 +387,16 @@ pub async fn result(
         .await
         .map_err(ApiError::internal)?;
     let format = negotiate(query.format, &headers);
-    if format == OutputFormat::Npy {
+    if format == OutputFormat::Npy && query.dtype.is_none() {
         return Ok(([(header::CONTENT_TYPE, "application/x-npy")], bytes).into_response());
     }
     let limits = state.jobs.io_limits();
     let (body, media) = tokio::task::spawn_blocking(move || {
         let decoded = io::decode(&bytes, Some(Format::Npy), &limits).map_err(ApiError::internal)?;
-        encode(&decoded.array, format)
+        match query.conversion(format, decoded.array.dtype())? {
+            Some(dtype) => encode(&cast_float(&decoded.array, dtype), format),
+            None => encode(&decoded.array, format),
+        }
     })
     .await
     .map_err(ApiError::internal)??;
