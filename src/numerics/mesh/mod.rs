@@ -5,6 +5,8 @@
 //! Half-edge convention: edge `k` of face `f` goes from `faces[f][k]` to
 //! `faces[f][(k + 1) % 3]` and has the id `3 f + k`.
 
+pub mod curvature;
+pub mod design;
 pub mod dijkstra;
 pub mod fast_marching;
 pub mod heat;

@@ -78,6 +78,22 @@ pub fn trace_path(
     sources: &[SurfacePoint],
     start: SurfacePoint,
 ) -> Result<GeodesicPath, MeshSolveError> {
+    trace_path_in(mesh, topo, distance, sources, start, None)
+}
+
+/// [`trace_path`] on a field computed under face tensors (`tensors`, one
+/// per face, as in [`super::fast_marching::Metric::Faces`]): in face `f`
+/// the path follows the characteristic direction `−M_f⁻¹ ∇d` (the inverse
+/// taken on the face's plane) rather than `−∇d`, so that it bends with
+/// the anisotropy. `None` is [`trace_path`].
+pub fn trace_path_in(
+    mesh: &TriMesh,
+    topo: &Topology,
+    distance: &[f64],
+    sources: &[SurfacePoint],
+    start: SurfacePoint,
+    tensors: Option<&[[f64; 6]]>,
+) -> Result<GeodesicPath, MeshSolveError> {
     start
         .validate(mesh)
         .map_err(|reason| MeshSolveError::InvalidSource { index: 0, reason })?;
@@ -158,7 +174,7 @@ pub fn trace_path(
                     if !finite_face(f) {
                         continue;
                     }
-                    let Some(g) = descent(mesh, distance, f) else {
+                    let Some(g) = descent(mesh, distance, f, tensors) else {
                         continue;
                     };
                     let face = faces[f as usize];
@@ -184,7 +200,7 @@ pub fn trace_path(
                         b[k] = 1.0;
                     }
                     // Walk one segment now so that the loop makes progress.
-                    at = walk(mesh, topo, distance, f, b, &mut points);
+                    at = walk(mesh, topo, distance, f, b, &mut points, tensors);
                     continue;
                 }
                 // Along the edge to the lowest neighbour.
@@ -217,7 +233,7 @@ pub fn trace_path(
                     source = Some(i);
                     break;
                 }
-                at = walk(mesh, topo, distance, f, b, &mut points);
+                at = walk(mesh, topo, distance, f, b, &mut points, tensors);
             }
         }
     }
@@ -238,8 +254,14 @@ fn bary_point(mesh: &TriMesh, f: u32, b: [f64; 3]) -> [f64; 3] {
     SurfacePoint::Face { face: f, bary: b }.position(mesh)
 }
 
-/// `−∇d` in face `f`, `None` when the face is degenerate or flat in `d`.
-fn descent(mesh: &TriMesh, distance: &[f64], f: u32) -> Option<[f64; 3]> {
+/// `−∇d` in face `f` (`−M_f⁻¹∇d` under face tensors), `None` when the face
+/// is degenerate or flat in `d`.
+fn descent(
+    mesh: &TriMesh,
+    distance: &[f64],
+    f: u32,
+    tensors: Option<&[[f64; 6]]>,
+) -> Option<[f64; 3]> {
     let face = mesh.faces()[f as usize];
     let p = face.map(|v| mesh.position(v));
     let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
@@ -256,6 +278,26 @@ fn descent(mesh: &TriMesh, distance: &[f64], f: u32) -> Option<[f64; 3]> {
             g[c] -= dk * r[c] / a2;
         }
     }
+    if let Some(t) = tensors {
+        // Solve M₂ v₂ = g₂ in the orthonormal frame (x, y) of the face.
+        let m = &t[f as usize];
+        let e = sub(p[1], p[0]);
+        let le = norm(e);
+        if le <= 0.0 {
+            return None;
+        }
+        let x = e.map(|c| c / le);
+        let y = cross(n, x);
+        let form = super::fast_marching::tensor_form;
+        let (a, b, c) = (form(m, x, x), form(m, x, y), form(m, y, y));
+        let det = a * c - b * b;
+        if det.is_nan() || det <= 0.0 {
+            return None;
+        }
+        let (gx, gy) = (dot(g, x), dot(g, y));
+        let (vx, vy) = ((c * gx - b * gy) / det, (a * gy - b * gx) / det);
+        g = std::array::from_fn(|j| vx * x[j] + vy * y[j]);
+    }
     (norm(g) > 0.0 && g.iter().all(|x| x.is_finite())).then_some(g)
 }
 
@@ -268,6 +310,7 @@ fn walk(
     f: u32,
     b: [f64; 3],
     points: &mut Vec<PathPoint>,
+    tensors: Option<&[[f64; 6]]>,
 ) -> At {
     let face = mesh.faces()[f as usize];
     let lowest = || {
@@ -283,7 +326,7 @@ fn walk(
         });
         At::Vertex(v)
     };
-    let Some(g) = descent(mesh, distance, f) else {
+    let Some(g) = descent(mesh, distance, f, tensors) else {
         return to_vertex(lowest(), points);
     };
     let p = face.map(|v| mesh.position(v));

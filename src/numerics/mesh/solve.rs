@@ -28,6 +28,9 @@ pub struct MeshDistanceOptions<'a> {
     pub max_distance: f64,
     /// Per-vertex weight `W` (fast marching and Dijkstra only).
     pub weights: Option<&'a [f64]>,
+    /// One tensor per face, an anisotropic metric (fast marching only,
+    /// exclusive with `weights`; see [`super::fast_marching`]).
+    pub tensors: Option<&'a [[f64; 6]]>,
     /// Heat method options.
     pub heat: HeatOptions,
 }
@@ -38,6 +41,7 @@ impl Default for MeshDistanceOptions<'_> {
             method: MeshMethod::FastMarching,
             max_distance: f64::INFINITY,
             weights: None,
+            tensors: None,
             heat: HeatOptions::default(),
         }
     }
@@ -84,6 +88,13 @@ pub fn mesh_distance(
             reason: "weights are supported by fast_marching and dijkstra only".into(),
         });
     }
+    if options.tensors.is_some() && options.method != MeshMethod::FastMarching {
+        return Err(MeshSolveError::InvalidOption {
+            option: "tensors",
+            reason: "face tensors (an anisotropic metric) are supported by fast_marching only"
+                .into(),
+        });
+    }
     match options.method {
         MeshMethod::FastMarching => fast_marching_distance(
             mesh,
@@ -91,6 +102,7 @@ pub fn mesh_distance(
             sources,
             &FastMarchingOptions {
                 weights: options.weights,
+                tensors: options.tensors,
                 max_distance: options.max_distance,
             },
             control,

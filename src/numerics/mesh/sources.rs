@@ -27,6 +27,36 @@ pub fn seeds(
     sources: &[SurfacePoint],
     weights: Option<&[f64]>,
 ) -> Result<Vec<Seed>, MeshSolveError> {
+    seeds_with(mesh, sources, |face, v, p| {
+        let f = mesh.faces()[face as usize];
+        let w = weights.map_or(1.0, |w| f.iter().map(|&v| w[v as usize]).sum::<f64>() / 3.0);
+        w * norm(sub(mesh.position(v), p))
+    })
+}
+
+/// [`seeds`] under one tensor per face: a point inside face `f` gives its
+/// vertices the length `sqrt(dᵀ M_f d)` of the segment `d` to the point
+/// (exact, the metric being constant in the face).
+pub fn tensor_seeds(
+    mesh: &TriMesh,
+    sources: &[SurfacePoint],
+    tensors: &[[f64; 6]],
+) -> Result<Vec<Seed>, MeshSolveError> {
+    seeds_with(mesh, sources, |face, v, p| {
+        let d = sub(mesh.position(v), p);
+        super::fast_marching::tensor_form(&tensors[face as usize], d, d)
+            .max(0.0)
+            .sqrt()
+    })
+}
+
+/// The seeds, with `length(face, vertex, point)` the distance from a face
+/// source's point to one of the face's vertices.
+fn seeds_with(
+    mesh: &TriMesh,
+    sources: &[SurfacePoint],
+    length: impl Fn(u32, u32, [f64; 3]) -> f64,
+) -> Result<Vec<Seed>, MeshSolveError> {
     if sources.is_empty() {
         return Err(MeshSolveError::NoSources);
     }
@@ -43,13 +73,10 @@ pub fn seeds(
             }),
             SurfacePoint::Face { face, .. } => {
                 let p = s.position(mesh);
-                let f = mesh.faces()[face as usize];
-                let w =
-                    weights.map_or(1.0, |w| f.iter().map(|&v| w[v as usize]).sum::<f64>() / 3.0);
-                for v in f {
+                for v in mesh.faces()[face as usize] {
                     out.push(Seed {
                         vertex: v,
-                        distance: w * norm(sub(mesh.position(v), p)),
+                        distance: length(face, v, p),
                         label,
                     });
                 }

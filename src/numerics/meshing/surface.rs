@@ -83,6 +83,7 @@
 use std::collections::HashMap;
 
 use crate::numerics::control::Control;
+use crate::numerics::mesh::curvature::{face_normal, face_tensors_from_curvature};
 use crate::numerics::mesh::fast_marching::{march_metric, MarchPrep, MarchWork, Metric};
 use crate::numerics::mesh::sampling::FarthestQueue;
 use crate::numerics::mesh::sources::{Seed, VertexGraph};
@@ -409,7 +410,7 @@ fn remesh_ordered(
                     reason: "must be finite, >= 1 and <= 100".into(),
                 });
             }
-            tensors = Some(anisotropic_face_metric(mesh, &topo, max_ratio));
+            tensors = Some(face_tensors_from_curvature(mesh, &topo, max_ratio));
             None
         }
         Adaptation::Curvature { strength } => {
@@ -426,7 +427,10 @@ fn remesh_ordered(
         Some(t) => Metric::Faces(t),
         None => Metric::Weights(weights.as_deref()),
     };
-    let prep = MarchPrep::new(mesh, &topo);
+    let prep = match &tensors {
+        Some(t) => MarchPrep::with_tensors(mesh, &topo, t),
+        None => MarchPrep::new(mesh, &topo),
+    };
     let areas = vertex_areas(mesh);
     let inner = control.cancel_only();
     let total_steps = (options.count + options.lloyd_iterations * options.count / 4 + 1) as f64;
@@ -777,12 +781,6 @@ fn voronoi(
     Ok(field)
 }
 
-/// Unnormalised normal `(b − a) × (c − a)` of a face.
-fn face_normal(mesh: &TriMesh, f: [u32; 3]) -> [f64; 3] {
-    let a = mesh.position(f[0]);
-    cross(sub(mesh.position(f[1]), a), sub(mesh.position(f[2]), a))
-}
-
 /// `W = 1 + λ κ / mean κ` (see the module docs).
 fn curvature_weights(mesh: &TriMesh, topo: &Topology, strength: f64) -> Vec<f64> {
     let n = mesh.num_vertices();
@@ -833,207 +831,6 @@ fn curvature_weights(mesh: &TriMesh, topo: &Topology, strength: f64) -> Vec<f64>
             } else {
                 1.0
             }
-        })
-        .collect()
-}
-
-/// Area-weighted unit vertex normals.
-fn vertex_normals(mesh: &TriMesh) -> Vec<[f64; 3]> {
-    let mut normals = vec![[0.0f64; 3]; mesh.num_vertices()];
-    for face in mesh.faces() {
-        let nf = face_normal(mesh, *face);
-        for &v in face {
-            for j in 0..3 {
-                normals[v as usize][j] += nf[j];
-            }
-        }
-    }
-    for n in normals.iter_mut() {
-        let l = norm(*n);
-        if l > 0.0 {
-            *n = n.map(|x| x / l);
-        }
-    }
-    normals
-}
-
-/// A unit vector orthogonal to the unit vector `n`.
-fn orthogonal(n: [f64; 3]) -> [f64; 3] {
-    let a = if n[0].abs() < 0.6 {
-        [1.0, 0.0, 0.0]
-    } else {
-        [0.0, 1.0, 0.0]
-    };
-    let t = cross(n, a);
-    let l = norm(t);
-    t.map(|x| x / l.max(f64::MIN_POSITIVE))
-}
-
-/// Eigenvalues `(λ₁ >= λ₂)` and the unit eigenvector of `λ₁` of the
-/// symmetric `[[a, b], [b, c]]`.
-fn eigen2(a: f64, b: f64, c: f64) -> (f64, f64, [f64; 2]) {
-    let m = 0.5 * (a + c);
-    let r = (0.25 * (a - c) * (a - c) + b * b).sqrt();
-    let (l1, l2) = (m + r, m - r);
-    // (b, l1 − a) or (l1 − c, b), whichever is longer.
-    let v = if (a - c).abs() + b.abs() == 0.0 {
-        [1.0, 0.0]
-    } else if a >= c {
-        [l1 - c, b]
-    } else {
-        [b, l1 - a]
-    };
-    let l = (v[0] * v[0] + v[1] * v[1]).sqrt();
-    (l1, l2, [v[0] / l, v[1] / l])
-}
-
-fn add_outer(t: &mut [f64; 6], s: f64, d: [f64; 3]) {
-    t[0] += s * d[0] * d[0];
-    t[1] += s * d[0] * d[1];
-    t[2] += s * d[0] * d[2];
-    t[3] += s * d[1] * d[1];
-    t[4] += s * d[1] * d[2];
-    t[5] += s * d[2] * d[2];
-}
-
-/// `|II|` of each vertex as a tensor of space (see the module docs), one
-/// pass of one-ring averaging.
-fn curvature_tensors(mesh: &TriMesh, topo: &Topology) -> Vec<[f64; 6]> {
-    let n = mesh.num_vertices();
-    let normals = vertex_normals(mesh);
-    let mut raw = vec![[0.0f64; 6]; n];
-    for v in 0..n {
-        let nv = normals[v];
-        if norm(nv) == 0.0 {
-            continue;
-        }
-        let t1 = orthogonal(nv);
-        let t2 = cross(nv, t1);
-        let pv = mesh.position(v as u32);
-        // Normal equations of the fit of (a, b, c).
-        let mut ata = [[0.0f64; 3]; 3];
-        let mut atb = [0.0f64; 3];
-        let mut rows = 0;
-        for &f in topo.faces_of(v as u32) {
-            for &u in &mesh.faces()[f as usize] {
-                if u as usize == v {
-                    continue;
-                }
-                let d = sub(mesh.position(u), pv);
-                let l2 = dot(d, d);
-                let (x, y) = (dot(d, t1), dot(d, t2));
-                let lt = (x * x + y * y).sqrt();
-                if l2 <= 0.0 || lt <= 0.0 {
-                    continue;
-                }
-                let kappa = 2.0 * dot(nv, d) / l2;
-                let (x, y) = (x / lt, y / lt);
-                let row = [x * x, 2.0 * x * y, y * y];
-                for ((line, rhs), &ri) in ata.iter_mut().zip(atb.iter_mut()).zip(&row) {
-                    for (x, &rj) in line.iter_mut().zip(&row) {
-                        *x += ri * rj;
-                    }
-                    *rhs += ri * kappa;
-                }
-                rows += 1;
-            }
-        }
-        let Some([a, b, c]) = (rows >= 3).then(|| solve3(ata, atb)).flatten() else {
-            continue;
-        };
-        let (k1, k2, e) = eigen2(a, b, c);
-        let r1: [f64; 3] = std::array::from_fn(|j| e[0] * t1[j] + e[1] * t2[j]);
-        let r2 = cross(nv, r1);
-        add_outer(&mut raw[v], k1.abs(), r1);
-        add_outer(&mut raw[v], k2.abs(), r2);
-    }
-    (0..n)
-        .map(|v| {
-            let mut s = raw[v];
-            let mut count = 1.0;
-            for &f in topo.faces_of(v as u32) {
-                for &u in &mesh.faces()[f as usize] {
-                    if u as usize != v {
-                        for (x, &y) in s.iter_mut().zip(&raw[u as usize]) {
-                            *x += y;
-                        }
-                        count += 1.0;
-                    }
-                }
-            }
-            s.map(|x| x / count)
-        })
-        .collect()
-}
-
-/// Solves the 3×3 system `A x = b` (Cramer), `None` when it is singular.
-fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
-    let det3 = |m: [[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det3(a);
-    let scale = a.iter().flatten().map(|x| x.abs()).fold(0.0f64, f64::max);
-    let tiny = 1e-12 * scale * scale * scale;
-    if d.is_nan() || d.abs() <= tiny {
-        return None;
-    }
-    let mut x = [0.0; 3];
-    for (k, xk) in x.iter_mut().enumerate() {
-        let mut m = a;
-        for (line, &bi) in m.iter_mut().zip(&b) {
-            line[k] = bi;
-        }
-        *xk = det3(m) / d;
-    }
-    Some(x)
-}
-
-/// The face tensors `M_f` of [`Adaptation::Anisotropic`] (module docs).
-fn anisotropic_face_metric(mesh: &TriMesh, topo: &Topology, max_ratio: f64) -> Vec<[f64; 6]> {
-    let tv = curvature_tensors(mesh, topo);
-    // Per face: the eigen-decomposition of the projected mean tensor.
-    let eig: Vec<([f64; 3], [f64; 3], f64, f64)> = mesh
-        .faces()
-        .iter()
-        .map(|face| {
-            let mut t = [0.0f64; 6];
-            for &v in face {
-                for (x, &y) in t.iter_mut().zip(&tv[v as usize]) {
-                    *x += y / 3.0;
-                }
-            }
-            let p0 = mesh.position(face[0]);
-            let e = sub(mesh.position(face[1]), p0);
-            let nf = face_normal(mesh, *face);
-            let (le, ln) = (norm(e), norm(nf));
-            if le <= 0.0 || ln <= 0.0 {
-                return ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.0, 0.0);
-            }
-            let x = e.map(|c| c / le);
-            let y = cross(nf.map(|c| c / ln), x);
-            let form = |a: [f64; 3], b: [f64; 3]| {
-                crate::numerics::mesh::fast_marching::tensor_form(&t, a, b)
-            };
-            let (l1, l2, q) = eigen2(form(x, x), form(x, y), form(y, y));
-            let q1: [f64; 3] = std::array::from_fn(|j| q[0] * x[j] + q[1] * y[j]);
-            let q2: [f64; 3] = std::array::from_fn(|j| -q[1] * x[j] + q[0] * y[j]);
-            (q1, q2, l1.max(0.0), l2.max(0.0))
-        })
-        .collect();
-    let nf = eig.len().max(1) as f64;
-    let mean = eig.iter().map(|e| e.2).sum::<f64>() / nf;
-    let eps = if mean > 0.0 { mean / 100.0 } else { 1.0 };
-    let rho2 = max_ratio * max_ratio;
-    eig.iter()
-        .map(|&(q1, q2, l1, l2)| {
-            let m1 = l1.max(eps);
-            let m2 = l2.max(eps).max(m1 / rho2);
-            let mut t = [0.0f64; 6];
-            add_outer(&mut t, m1, q1);
-            add_outer(&mut t, m2, q2);
-            t
         })
         .collect()
 }
@@ -1280,6 +1077,7 @@ pub fn hausdorff_distance(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::numerics::mesh::curvature::absolute_tensors;
     use crate::numerics::mesh::shapes::{flat_square, icosphere, torus};
 
     fn check_valid(r: &Remesh) {
@@ -1398,14 +1196,17 @@ mod tests {
             let k = r.samples.len();
             let mut m = vec![(0.0f64, 0.0f64, 0usize); k];
             // Cells of the final samples: one multi-source march.
-            let prep = MarchPrep::new(&mesh, &Topology::new(&mesh));
             let tensors = match adaptation {
-                Adaptation::Anisotropic { max_ratio } => Some(anisotropic_face_metric(
+                Adaptation::Anisotropic { max_ratio } => Some(face_tensors_from_curvature(
                     &mesh,
                     &Topology::new(&mesh),
                     max_ratio,
                 )),
                 _ => None,
+            };
+            let prep = match &tensors {
+                Some(t) => MarchPrep::with_tensors(&mesh, &Topology::new(&mesh), t),
+                None => MarchPrep::new(&mesh, &Topology::new(&mesh)),
             };
             let metric = tensors
                 .as_deref()
@@ -1461,7 +1262,7 @@ mod tests {
     #[test]
     fn principal_curvatures_of_a_cylinder() {
         let mesh = crate::numerics::mesh::shapes::prism(120, 60, 2.0, 6.0);
-        let t = curvature_tensors(&mesh, &Topology::new(&mesh));
+        let t = absolute_tensors(&mesh, &Topology::new(&mesh));
         // A vertex away from the rims: |II| = (1/R) θθᵀ, θ the tangent around.
         let v = 30 * 120 + 7;
         let p = mesh.position(v as u32);

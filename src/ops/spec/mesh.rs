@@ -293,6 +293,7 @@ pub(crate) fn run_distance(
         method,
         max_distance,
         weights,
+        tensors: None,
         heat: heat.options(),
     };
     if method == MeshMethod::Heat {
