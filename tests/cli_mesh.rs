@@ -384,3 +384,116 @@ fn correspond_writes_the_matches_and_names_a_bad_scale() {
     let o = run(&big, &["--scale"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `--metric` and `--weights`: the file named in the metric section is read
+/// from disk, the result equals the library's design + fast marching, and a
+/// bad section or a missing file is one line naming the flag.
+#[test]
+fn metric_and_weights_flags_read_their_files() {
+    use geodex::numerics::mesh::design::{design, FieldMode, MeshDesign};
+    use geodex::numerics::mesh::Topology;
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, bytes) = sphere_obj(&dir);
+    let loaded = read_mesh(&bytes, Some(MeshFormat::Obj), &MeshLimits::default()).unwrap();
+    let mesh = &loaded.mesh;
+    let n = mesh.num_vertices();
+    // A texture: the height z.
+    let field: Vec<f64> = mesh.positions().iter().map(|p| p[2]).collect();
+    let field_path = dir.path().join("texture.npy");
+    ndarray_npy::write_npy(&field_path, &Array1::from(field.clone())).unwrap();
+    let topo = Topology::new(mesh);
+    let w = design(
+        mesh,
+        &topo,
+        &MeshDesign::Field {
+            values: &field,
+            mode: FieldMode::Follow,
+            epsilon: 0.01,
+            power: 1.0,
+        },
+        &Control::new(),
+    )
+    .unwrap();
+    let expected = mesh_distance(
+        mesh,
+        &topo,
+        &[SurfacePoint::Vertex(3)],
+        &MeshDistanceOptions {
+            weights: Some(&w),
+            ..Default::default()
+        },
+        None,
+        &Control::new(),
+    )
+    .unwrap();
+    let out = dir.path().join("d.npy");
+    let metric = format!(
+        r#"{{"kind": "field", "field": "{}", "mode": "follow"}}"#,
+        s(&field_path)
+    );
+    let o = geodex(&[
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "3",
+        "--out",
+        s(&out),
+        "--metric",
+        &metric,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d: Array1<f64> = read_npy(&out).unwrap();
+    assert_eq!(d.len(), n);
+    for (a, b) in d.iter().zip(&expected.distance) {
+        assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
+    }
+    // The same weights as a file.
+    let w_path = dir.path().join("w.npy");
+    ndarray_npy::write_npy(&w_path, &Array1::from(w.clone())).unwrap();
+    let o = geodex(&[
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "3",
+        "--out",
+        s(&out),
+        "--weights",
+        s(&w_path),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let d2: Array1<f64> = read_npy(&out).unwrap();
+    assert_eq!(d, d2);
+    // Misuse: one line naming the flag.
+    for (args, needle) in [
+        (vec!["--metric", "{\"kind\": \"nope\"}"], "--metric"),
+        (
+            vec![
+                "--metric",
+                "{\"kind\": \"field\", \"field\": \"/nonexistent.npy\"}",
+            ],
+            "--metric",
+        ),
+        (
+            vec![
+                "--metric",
+                "{\"kind\": \"curvature_tensors\"}",
+                "--method",
+                "heat",
+            ],
+            "--metric",
+        ),
+        (vec!["--weights", "/nonexistent.npy"], "--weights"),
+    ] {
+        let mut all = vec![
+            "--mesh",
+            s(&mesh_path),
+            "--source-vertex",
+            "0",
+            "--out",
+            s(&out),
+        ];
+        all.extend(args);
+        let line = one_error_line(&all);
+        assert!(line.contains(needle), "{all:?}: {line}");
+    }
+}

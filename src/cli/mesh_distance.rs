@@ -8,7 +8,15 @@
 //! ```text
 //! geodex mesh-distance --mesh bunny.ply --source-vertex 0 --method heat --out D.npy --labels L.npy
 //! geodex mesh-distance --mesh part.stl --source-face 12,0.2,0.3,0.5 --out D.npy
+//! geodex mesh-distance --mesh scan.ply --source-vertex 0 --out D.npy \
+//!     --metric '{"kind": "curvature", "feature": "ridges"}'
+//! geodex mesh-distance --mesh scan.ply --source-vertex 0 --out D.npy \
+//!     --metric '{"kind": "field", "field": "texture.npy", "mode": "follow"}'
 //! ```
+//!
+//! `--metric` takes the `metric` section of the request as JSON; where the
+//! service names a dataset by id (`field`, `dataset`), the command reads that
+//! file (NPY, TIFF, PNG, NIfTI, JSON), as `--weights` does.
 //!
 //! Errors are one line on stderr and a non-zero exit status.
 
@@ -24,6 +32,7 @@ use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData};
 use crate::ops::spec::mesh::MeshDistanceRequest;
 use crate::ops::spec::mesh::{HeatSpec, LaplacianSpec, MeshInput, MeshMethodSpec, MeshPointSpec};
+use crate::ops::spec::mesh_metric::MeshMetricSpec;
 use crate::ops::{InputArray, Inputs};
 use crate::problem::ApiError;
 use crate::runner::LoadInputs;
@@ -52,6 +61,13 @@ pub struct MeshDistanceArgs {
     /// Vertices farther than this get +inf.
     #[arg(long)]
     pub max_distance: Option<f64>,
+    /// A file with one weight W > 0 per vertex (cost per unit length).
+    #[arg(long, value_name = "W.npy")]
+    pub weights: Option<PathBuf>,
+    /// The request's `metric` section as JSON (designs from curvature or a
+    /// field, face tensors); dataset ids in it are file paths.
+    #[arg(long, value_name = "JSON")]
+    pub metric: Option<String>,
     /// Output: f64 distance per vertex (NPY).
     #[arg(long, value_name = "D.npy")]
     pub out: PathBuf,
@@ -108,6 +124,27 @@ impl LoadInputs for One {
 impl Inputs for One {
     fn get(&self, _id: &str) -> Option<InputArray> {
         None
+    }
+    fn mesh(&self, _id: &str) -> Option<Arc<MeshInput>> {
+        Some(self.0.clone())
+    }
+}
+
+/// One mesh and the array files its request names (ids are paths).
+struct WithFiles(
+    Arc<MeshInput>,
+    std::collections::HashMap<String, InputArray>,
+);
+
+impl LoadInputs for WithFiles {
+    async fn load(&mut self, _ids: Vec<(String, String)>) -> Result<(), ApiError> {
+        Ok(())
+    }
+}
+
+impl Inputs for WithFiles {
+    fn get(&self, id: &str) -> Option<InputArray> {
+        self.1.get(id).cloned()
     }
     fn mesh(&self, _id: &str) -> Option<Arc<MeshInput>> {
         Some(self.0.clone())
@@ -197,17 +234,48 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
             MeshMethodArg::Dijkstra => MeshMethodSpec::Dijkstra,
         },
         max_distance: args.max_distance,
-        weights: None,
+        weights: args.weights.as_ref().map(|p| p.display().to_string()),
+        metric: match &args.metric {
+            Some(json) => Some(
+                serde_json::from_str::<MeshMetricSpec>(json)
+                    .map_err(|e| format!("--metric: not a metric section: {e}"))?,
+            ),
+            None => None,
+        },
         heat: args.laplacian.heat(args.heat_m),
     };
+    let mut files = std::collections::HashMap::new();
+    let named = request
+        .weights
+        .iter()
+        .map(|w| ("--weights", w.clone()))
+        .chain(
+            request
+                .metric
+                .iter()
+                .flat_map(|m| m.dataset_ids())
+                .map(|(_, id)| ("--metric", id)),
+        );
+    for (flag, path) in named {
+        let d = super::distance::read_array(flag, Path::new(&path)).map_err(|e| e.to_string())?;
+        files.insert(
+            path,
+            InputArray {
+                array: Arc::new(d.array),
+                spacing: d.spacing,
+            },
+        );
+    }
     let vertices = args.source_vertices.len();
     let flags = FlagMap::new()
         .each_in("sources", "--source-vertex", 0..vertices)
         .each_in("sources", "--source-face", vertices..usize::MAX)
         .field("sources", "--source-vertex")
         .field("heat.m", "--heat-m")
-        .field("heat", "--laplacian");
-    let inputs = One(Arc::new(input));
+        .field("heat", "--laplacian")
+        .field("weights", "--weights")
+        .field("metric", "--metric");
+    let inputs = WithFiles(Arc::new(input), files);
     let output = run_operation(Box::new(request), inputs, &flags).map_err(|e| e.to_string())?;
     let written = Instant::now();
     for a in &output.arrays {

@@ -3,6 +3,7 @@
 
 pub use super::spec::mesh::MeshDistanceRequest;
 use super::spec::mesh::{compute, validate_common, vertex_output};
+use super::spec::mesh_metric::validate_metric;
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::Control;
 
@@ -10,13 +11,17 @@ impl Operation for MeshDistanceRequest {
     const NAME: &'static str = "mesh.distance";
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
-        validate_common(&self.sources, self.max_distance, &self.heat, limits).map(|_| ())
+        validate_common(&self.sources, self.max_distance, &self.heat, limits)?;
+        validate_metric(self.weights.as_deref(), self.metric.as_ref(), self.method)
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
         let mut ids = vec![("mesh".to_string(), self.mesh.clone())];
         if let Some(w) = &self.weights {
             ids.push(("weights".into(), w.clone()));
+        }
+        if let Some(m) = &self.metric {
+            ids.extend(m.dataset_ids());
         }
         ids
     }

@@ -11,9 +11,10 @@ use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::{
     check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
 };
+use super::spec::mesh_metric::{resolve_metric, validate_metric, MeshMetricSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::exact::exact_paths;
-use crate::numerics::mesh::paths::{trace_path, PathLocation};
+use crate::numerics::mesh::paths::{trace_path_in, PathLocation};
 use crate::numerics::mesh::{MeshMethod, SurfacePoint};
 use crate::numerics::Control;
 
@@ -40,6 +41,15 @@ pub struct MeshPathsRequest {
     /// methods descend their distance field. Default: `fast_marching`.
     #[serde(default)]
     pub method: MeshMethodSpec,
+    /// Id of an array dataset with one weight `W > 0` per vertex (cost per
+    /// unit length; `fast_marching` and `dijkstra`). Default: 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<String>,
+    /// A metric designed on the surface (curvature, field) or anisotropic
+    /// (face tensors, `fast_marching` only: the path then follows the
+    /// characteristic direction `−M⁻¹∇U`), instead of `weights`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<MeshMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,
@@ -82,6 +92,7 @@ impl Operation for MeshPathsRequest {
 
     fn validate(&self, limits: &OpLimits) -> Result<(), OpError> {
         validate_common(&self.sources, None, &self.heat, limits)?;
+        validate_metric(self.weights.as_deref(), self.metric.as_ref(), self.method)?;
         if self.ends.is_empty() {
             return Err(OpError::invalid("ends", "at least one end point is needed"));
         }
@@ -98,7 +109,14 @@ impl Operation for MeshPathsRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        vec![("mesh".to_string(), self.mesh.clone())]
+        let mut ids = vec![("mesh".to_string(), self.mesh.clone())];
+        if let Some(w) = &self.weights {
+            ids.push(("weights".into(), w.clone()));
+        }
+        if let Some(m) = &self.metric {
+            ids.extend(m.dataset_ids());
+        }
+        ids
     }
 
     fn run(
@@ -120,6 +138,13 @@ impl Operation for MeshPathsRequest {
         check_points(&input.mesh, &targets, "ends")?;
         let started = Instant::now();
         let method: MeshMethod = self.method.into();
+        let metric = resolve_metric(
+            inputs,
+            &input,
+            self.weights.as_deref(),
+            self.metric.as_ref(),
+            control,
+        )?;
         // The exact method backtracks its windows: exact paths. The others
         // descend their distance field.
         let (d, heat, exact) = if method == MeshMethod::Exact {
@@ -134,7 +159,7 @@ impl Operation for MeshPathsRequest {
                 &sources,
                 method,
                 f64::INFINITY,
-                None,
+                &metric,
                 &self.heat,
                 control,
             )?;
@@ -148,7 +173,14 @@ impl Operation for MeshPathsRequest {
             }
             let path = match exact.as_mut().and_then(|p| p.next()) {
                 Some(p) => p,
-                None => trace_path(&input.mesh, &input.topology, &d.distance, &sources, *t),
+                None => trace_path_in(
+                    &input.mesh,
+                    &input.topology,
+                    &d.distance,
+                    &sources,
+                    *t,
+                    metric.tensors.as_deref(),
+                ),
             }
             .map_err(|e| OpError::invalid(format!("ends[{i}]"), e.to_string()))?;
             let distance = match *t {

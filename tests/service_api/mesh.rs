@@ -381,3 +381,184 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
     .await;
     assert!(p.to_string().contains("max_ratio"), "{p}");
 }
+
+/// `metric` on `mesh.distance` and `mesh.paths` (issue 24 item 4): a
+/// constant face tensor (ratio 10 at 30°) gives `sqrt(vᵀMv)` on a flat
+/// square; a field design pulls a path onto the field's cheap line; every
+/// misuse is a 422 naming the field.
+#[tokio::test]
+async fn mesh_metrics_designs_and_face_tensors() {
+    use geodex::io::ArrayData;
+    use geodex::numerics::mesh::shapes::flat_square;
+    let app = spawn(|_| {}).await;
+    let n = 32;
+    let square = flat_square(n, 1.0, 0.0);
+    let meta = upload_mesh(&app, write_obj(&square), "model/obj", "").await;
+    let id = meta["id"].as_str().unwrap().to_string();
+    assert_eq!(meta["mesh"]["vertices"], (n + 1) * (n + 1));
+
+    // R diag(100, 1) Rᵀ, R the rotation by 30°.
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let m = [
+        [100.0 * c * c + s * s, 99.0 * c * s, 0.0],
+        [99.0 * c * s, 100.0 * s * s + c * c, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let centre = n / 2 * (n + 1) + n / 2;
+    let res = post(
+        &app,
+        "/v1/mesh/distance",
+        json!({"mesh": id, "sources": [{"vertex": centre}],
+               "metric": {"kind": "tensors", "constant": m}}),
+    )
+    .await;
+    assert_eq!(res.status(), 200, "{:?}", res.text().await);
+    let body: serde_json::Value = res.json().await.unwrap();
+    let url = body["result"]["data_url"].as_str().unwrap().to_string();
+    let ply = app.get(&url).await.bytes().await.unwrap();
+    let d = vertex_values(&ply).unwrap().distance.unwrap();
+    let pc = square.position(centre as u32);
+    let exact: Vec<f64> = (0..square.num_vertices())
+        .map(|v| {
+            let p = square.position(v as u32);
+            let (x, y) = (p[0] - pc[0], p[1] - pc[1]);
+            (m[0][0] * x * x + 2.0 * m[0][1] * x * y + m[1][1] * y * y).sqrt()
+        })
+        .collect();
+    let far = exact.iter().cloned().fold(0.0, f64::max) / 4.0;
+    let worst = exact
+        .iter()
+        .zip(&d)
+        .filter(|(e, _)| **e >= far)
+        .map(|(e, u)| (u - e).abs() / e)
+        .fold(0.0, f64::max);
+    assert!(worst < 0.03, "largest relative error {worst}");
+
+    // A field equal to x, cheapest at 0.5: the path from (0.125, 0.125) to
+    // (0.125, 0.875) detours through the line x = 0.5; without it, it is
+    // the straight segment x = 0.125.
+    let field: Vec<f64> = square.positions().iter().map(|p| p[0]).collect();
+    let nv = field.len();
+    let field_id = app
+        .upload(&ArrayData::F64(
+            ndarray::ArrayD::from_shape_vec(vec![1, nv], field).unwrap(),
+        ))
+        .await;
+    let (a, b) = (4 * (n + 1) + 4, 28 * (n + 1) + 4);
+    let path_x = |body: serde_json::Value| {
+        body["paths"][0]["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["position"][0].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    };
+    let designed = post(
+        &app,
+        "/v1/mesh/paths",
+        json!({"mesh": id, "sources": [{"vertex": a}], "ends": [{"vertex": b}],
+               "metric": {"kind": "field", "field": field_id, "mode": "value", "reference": 0.5}}),
+    )
+    .await;
+    assert_eq!(designed.status(), 200, "{:?}", designed.text().await);
+    let plain = post(
+        &app,
+        "/v1/mesh/paths",
+        json!({"mesh": id, "sources": [{"vertex": a}], "ends": [{"vertex": b}]}),
+    )
+    .await;
+    let (dx, px) = (
+        path_x(designed.json().await.unwrap()),
+        path_x(plain.json().await.unwrap()),
+    );
+    assert!(dx > 0.45, "designed path reaches x = {dx}");
+    assert!(px < 0.13, "plain path reaches x = {px}");
+
+    // A curvature design runs (the square is flat: a constant cost).
+    let res = post(
+        &app,
+        "/v1/mesh/voronoi",
+        json!({"mesh": id, "sources": [{"vertex": 0}, {"vertex": centre}],
+               "metric": {"kind": "curvature", "feature": "ridges"}}),
+    )
+    .await;
+    assert_eq!(res.status(), 200, "{:?}", res.text().await);
+
+    // Misuse: each a 422 naming the field.
+    let short = app
+        .upload(&ArrayData::F64(
+            ndarray::ArrayD::from_shape_vec(vec![1, 5], vec![1.0; 5]).unwrap(),
+        ))
+        .await;
+    for (metric, extra, field) in [
+        (
+            json!({"kind": "curvature"}),
+            json!({"weights": short}),
+            "metric",
+        ),
+        (
+            json!({"kind": "curvature_tensors"}),
+            json!({"method": "heat"}),
+            "metric",
+        ),
+        (
+            json!({"kind": "curvature"}),
+            json!({"method": "exact"}),
+            "metric",
+        ),
+        (
+            json!({"kind": "field", "field": short}),
+            json!({}),
+            "metric.field",
+        ),
+        (
+            json!({"kind": "field", "field": short, "mode": "value"}),
+            json!({}),
+            "metric.reference",
+        ),
+        (
+            json!({"kind": "tensors", "constant": [[1, 0, 0], [0, -1, 0], [0, 0, 1]]}),
+            json!({}),
+            "metric.constant",
+        ),
+        (
+            json!({"kind": "tensors", "constant": [[1, 2, 0], [0, 1, 0], [0, 0, 1]]}),
+            json!({}),
+            "metric.constant",
+        ),
+        (json!({"kind": "tensors"}), json!({}), "metric"),
+        (
+            json!({"kind": "tensors", "dataset": short}),
+            json!({}),
+            "metric.dataset",
+        ),
+        (
+            json!({"kind": "curvature_tensors", "max_ratio": 0.5}),
+            json!({}),
+            "metric.max_ratio",
+        ),
+        (
+            json!({"kind": "curvature", "epsilon": 0}),
+            json!({}),
+            "metric.epsilon",
+        ),
+    ] {
+        let mut req = json!({"mesh": id, "sources": [{"vertex": 0}], "metric": metric});
+        for (k, v) in extra.as_object().unwrap() {
+            req[k] = v.clone();
+        }
+        let p = problem(post(&app, "/v1/mesh/distance", req.clone()).await, 422).await;
+        assert!(p.to_string().contains(field), "{req}: {p}");
+    }
+    problem(
+        post(
+            &app,
+            "/v1/mesh/distance",
+            json!({"mesh": id, "sources": [{"vertex": 0}],
+                   "metric": {"kind": "field", "field": "ds_00000000000000000000000000000000"}}),
+        )
+        .await,
+        404,
+    )
+    .await;
+}

@@ -10,6 +10,7 @@ use utoipa::ToSchema;
 use ndarray::ArrayD;
 
 use super::errors::mesh_solve_error;
+use super::mesh_metric::{resolve_metric, validate_metric, MeshMetricSpec, ResolvedMeshMetric};
 use crate::io::mesh::MeshReport;
 use crate::io::ArrayData;
 use crate::numerics::mesh::{
@@ -285,15 +286,15 @@ pub(crate) fn run_distance(
     sources: &[SurfacePoint],
     method: MeshMethod,
     max_distance: f64,
-    weights: Option<&[f64]>,
+    metric: &ResolvedMeshMetric,
     heat: &HeatSpec,
     control: &Control<'_>,
 ) -> Result<(MeshDistance, Option<HeatInfo>), OpError> {
     let opts = MeshDistanceOptions {
         method,
         max_distance,
-        weights,
-        tensors: None,
+        weights: metric.weights.as_deref(),
+        tensors: metric.tensors.as_deref(),
         heat: heat.options(),
     };
     if method == MeshMethod::Heat {
@@ -452,6 +453,10 @@ pub struct MeshDistanceRequest {
     /// unit length; `fast_marching` and `dijkstra`). Default: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weights: Option<String>,
+    /// A metric designed on the surface (curvature, field) or anisotropic
+    /// (face tensors, `fast_marching` only), instead of `weights`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<MeshMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,
@@ -465,13 +470,17 @@ pub(crate) fn compute(
     control: &Control<'_>,
 ) -> Result<(MeshDistance, serde_json::Value), OpError> {
     let points = validate_common(&req.sources, req.max_distance, &req.heat, limits)?;
+    validate_metric(req.weights.as_deref(), req.metric.as_ref(), req.method)?;
     let input = get_mesh(inputs, "mesh", &req.mesh)?;
     check_points(&input.mesh, &points, "sources")?;
-    let weights = match &req.weights {
-        Some(id) => Some(read_weights(inputs, id, input.mesh.num_vertices())?),
-        None => None,
-    };
     let started = Instant::now();
+    let metric = resolve_metric(
+        inputs,
+        &input,
+        req.weights.as_deref(),
+        req.metric.as_ref(),
+        control,
+    )?;
     let (d, heat) = run_distance(
         inputs,
         &req.mesh,
@@ -479,7 +488,7 @@ pub(crate) fn compute(
         &points,
         req.method.into(),
         req.max_distance.unwrap_or(f64::INFINITY),
-        weights.as_deref(),
+        &metric,
         &req.heat,
         control,
     )?;

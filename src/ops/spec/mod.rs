@@ -14,6 +14,8 @@
 //!   masks).
 //! * [`mesh`]: surface points, mesh methods, the mesh input and the
 //!   distance solve shared by the mesh operations.
+//! * [`mesh_metric`]: the `metric` section of the mesh operations (designs
+//!   from curvature or a field, face tensors) and its resolution.
 //! * [`shape`]: size limits, symmetrisation and errors of the shape operations.
 //! * [`map_cache`]: designed costs and distance maps kept between requests
 //!   (`grid.paths`, `grid.distance`), with their keys.
@@ -28,6 +30,7 @@ pub mod errors;
 pub mod grid;
 pub mod map_cache;
 pub mod mesh;
+pub mod mesh_metric;
 pub mod scheme;
 pub mod shape;
 pub mod tensor;
