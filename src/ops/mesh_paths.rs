@@ -71,6 +71,18 @@ pub struct PathPointOut {
     pub face: Option<u32>,
 }
 
+/// How a path was traced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TracedSpec {
+    /// Backtracked through the exact method's windows: a shortest path
+    /// whose length is the exact distance.
+    Windows,
+    /// Descent of the distance field across faces (every method but
+    /// `exact`, and `exact` where its windows could not be followed back).
+    Descent,
+}
+
 /// One path.
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct PathOut {
@@ -78,6 +90,11 @@ pub struct PathOut {
     pub index: usize,
     /// Index of the source reached (`null` if the descent stopped short).
     pub source: Option<usize>,
+    /// How it was traced.
+    pub traced: TracedSpec,
+    /// Why an `exact` path fell back to the descent, when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
     /// The geodesic distance `U` of the end point in the field that was
     /// descended (with `exact`, the polyline's length).
     pub geodesic_length: f64,
@@ -171,23 +188,36 @@ impl Operation for MeshPathsRequest {
             if control.is_cancelled() {
                 return Err(OpError::Cancelled);
             }
-            let path = match exact.as_mut().and_then(|p| p.next()) {
-                Some(p) => p,
-                None => trace_path_in(
+            let descend = || {
+                trace_path_in(
                     &input.mesh,
                     &input.topology,
                     &d.distance,
                     &sources,
                     *t,
                     metric.tensors.as_deref(),
-                ),
-            }
-            .map_err(|e| OpError::invalid(format!("ends[{i}]"), e.to_string()))?;
+                )
+            };
+            let reached = match *t {
+                SurfacePoint::Vertex(v) => d.distance[v as usize].is_finite(),
+                SurfacePoint::Face { face, .. } => input.mesh.faces()[face as usize]
+                    .iter()
+                    .any(|&v| d.distance[v as usize].is_finite()),
+            };
+            let (path, traced, note) = match exact.as_mut().and_then(|p| p.next()) {
+                Some(Ok(p)) => (Ok(p), TracedSpec::Windows, None),
+                // The windows could not be followed back (near-degenerate
+                // faces): the descent of the exact distance, said so.
+                Some(Err(e)) if reached => (descend(), TracedSpec::Descent, Some(e.to_string())),
+                Some(Err(e)) => (Err(e), TracedSpec::Windows, None),
+                None => (descend(), TracedSpec::Descent, None),
+            };
+            let path = path.map_err(|e| OpError::invalid(format!("ends[{i}]"), e.to_string()))?;
             let distance = match *t {
                 SurfacePoint::Vertex(v) => d.distance[v as usize],
                 // The exact distance of a point inside a face is the length
                 // of its exact path; the others interpolate.
-                SurfacePoint::Face { .. } if method == MeshMethod::Exact => path.length,
+                SurfacePoint::Face { .. } if traced == TracedSpec::Windows => path.length,
                 SurfacePoint::Face { face, bary } => {
                     let f = input.mesh.faces()[face as usize];
                     (0..3).map(|k| bary[k] * d.distance[f[k] as usize]).sum()
@@ -196,6 +226,8 @@ impl Operation for MeshPathsRequest {
             paths.push(PathOut {
                 index: i,
                 source: path.source,
+                traced,
+                note,
                 geodesic_length: distance,
                 euclidean_length: path.length,
                 // The core traces from the end down to the source.

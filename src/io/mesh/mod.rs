@@ -216,7 +216,11 @@ pub struct MeshReport {
     pub faces: usize,
     /// Triangles in the file (after triangulating polygons).
     pub input_faces: usize,
-    /// Vertices merged because they had identical coordinates (STL).
+    /// Vertices merged because they had identical coordinates (STL), or
+    /// were corners of a face of round-off size (its longest edge below
+    /// 1e-12 of the mesh's extent, as marching cubes makes where the
+    /// surface passes through a grid point): such a face is collapsed to
+    /// one vertex, and the faces it thins out are dropped as degenerate.
     pub welded_vertices: usize,
     /// Triangles dropped because they repeat a vertex or have zero area.
     pub degenerate_faces: usize,
@@ -311,11 +315,12 @@ impl RawMesh {
         {
             return Err(MeshError::NonFinite { vertex }.into());
         }
-        crate::numerics::mesh::check_scale(&self.positions, &self.triangles)?;
+        let extent = crate::numerics::mesh::check_scale(&self.positions, &self.triangles)?;
         let input_faces = self.triangles.len();
+        let (triangles, collapsed) = weld_round_off_faces(&self.positions, self.triangles, extent);
         let mut degenerate = 0;
-        let mut kept = Vec::with_capacity(self.triangles.len());
-        for f in self.triangles {
+        let mut kept = Vec::with_capacity(triangles.len());
+        for f in triangles {
             if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
                 degenerate += 1;
                 continue;
@@ -342,7 +347,7 @@ impl RawMesh {
         let topology = Topology::new(&mesh);
         let report = MeshReport {
             input_faces,
-            welded_vertices: self.welded,
+            welded_vertices: self.welded + collapsed,
             degenerate_faces: degenerate,
             duplicate_faces: duplicate,
             ..report_of(&mesh, &topology)
@@ -354,6 +359,58 @@ impl RawMesh {
             format,
         })
     }
+}
+
+/// Collapses every face of round-off size (longest edge below
+/// [`crate::numerics::mesh::MIN_FACE_RELATIVE`] times `extent`) to its
+/// first corner, merging its vertices (union-find) and renaming them in
+/// every face, until none is left (at most four rounds: a merge moves a
+/// corner by less than the threshold). Returns the faces and the number of
+/// vertices merged away; they stay in the vertex list, unreferenced, so
+/// that vertex indices keep the file's order.
+fn weld_round_off_faces(
+    positions: &[[f64; 3]],
+    mut faces: Vec<[u32; 3]>,
+    extent: f64,
+) -> (Vec<[u32; 3]>, usize) {
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    let limit = crate::numerics::mesh::MIN_FACE_RELATIVE * extent;
+    let dist = |a: u32, b: u32| norm(sub(positions[a as usize], positions[b as usize]));
+    let mut merged = 0;
+    for _ in 0..4 {
+        let mut parent: Option<Vec<u32>> = None;
+        for f in &faces {
+            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+                continue;
+            }
+            let longest = dist(f[0], f[1]).max(dist(f[1], f[2])).max(dist(f[2], f[0]));
+            if longest < limit {
+                let p = parent.get_or_insert_with(|| (0..positions.len() as u32).collect());
+                for &v in &f[1..] {
+                    let (a, b) = (find(p, f[0]), find(p, v));
+                    if a != b {
+                        p[b as usize] = a;
+                        merged += 1;
+                    }
+                }
+            }
+        }
+        let Some(mut p) = parent else {
+            break;
+        };
+        for f in faces.iter_mut() {
+            for v in f.iter_mut() {
+                *v = find(&mut p, *v);
+            }
+        }
+    }
+    (faces, merged)
 }
 
 /// The report of a mesh built in memory (nothing welded or dropped): its

@@ -142,6 +142,10 @@ pub(crate) fn eigen2(a: f64, b: f64, c: f64) -> (f64, f64, [f64; 2]) {
         [b, l1 - a]
     };
     let l = (v[0] * v[0] + v[1] * v[1]).sqrt();
+    if l.is_nan() || l <= 0.0 || l == f64::INFINITY {
+        // Equal eigenvalues up to round-off: any direction.
+        return (l1, l2, [1.0, 0.0]);
+    }
     (l1, l2, [v[0] / l, v[1] / l])
 }
 
@@ -223,6 +227,17 @@ fn fitted_form(mesh: &TriMesh, topo: &Topology, v: usize, nv: [f64; 3]) -> [f64;
     let mut ata = [[0.0f64; 3]; 3];
     let mut atb = [0.0f64; 3];
     let mut rows = 0;
+    // Edges shorter than 1e-4 of the ring's longest (needles, near
+    // duplicates) cannot resolve a curvature: `κ_e` would be `~1/|d|`.
+    let longest = topo
+        .faces_of(v as u32)
+        .iter()
+        .flat_map(|&f| mesh.faces()[f as usize])
+        .map(|u| {
+            let d = sub(mesh.position(u), pv);
+            dot(d, d)
+        })
+        .fold(0.0, f64::max);
     for &f in topo.faces_of(v as u32) {
         for &u in &mesh.faces()[f as usize] {
             if u as usize == v {
@@ -232,7 +247,7 @@ fn fitted_form(mesh: &TriMesh, topo: &Topology, v: usize, nv: [f64; 3]) -> [f64;
             let l2 = dot(d, d);
             let (x, y) = (dot(d, t1), dot(d, t2));
             let lt = (x * x + y * y).sqrt();
-            if l2 <= 0.0 || lt <= 0.0 {
+            if l2 <= 1e-8 * longest || lt <= 1e-4 * longest.sqrt() {
                 continue;
             }
             let kappa = -2.0 * dot(nv, d) / l2;
@@ -250,6 +265,9 @@ fn fitted_form(mesh: &TriMesh, topo: &Topology, v: usize, nv: [f64; 3]) -> [f64;
     let Some([a, b, c]) = (rows >= 3).then(|| solve3(ata, atb)).flatten() else {
         return out;
     };
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return out;
+    }
     let (k1, k2, e) = eigen2(a, b, c);
     let r1: [f64; 3] = std::array::from_fn(|j| e[0] * t1[j] + e[1] * t2[j]);
     add_outer(&mut out, k1, r1);

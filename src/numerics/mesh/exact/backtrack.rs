@@ -229,7 +229,19 @@ impl Propagation<'_> {
             }
         }
         dedup(&mut points);
-        Ok(GeodesicPath::from_points(points, Some(label as usize)))
+        let path = GeodesicPath::from_points(points, Some(label as usize));
+        // The pieces must add up to the distance. On faces whose unfolding
+        // is lost in round-off (needles 1e-9 of an edge long) a ray can end
+        // short of its source image; such a path is refused rather than
+        // returned as exact.
+        if (path.length - dist).abs() > 1e-6 * (dist + path.length) + 1e-12 {
+            return Err(MeshSolveError::Numerical(format!(
+                "the path traced back through the windows is {:.9} long for an exact distance \
+                 of {dist:.9}: a ray lost its way on near-degenerate faces",
+                path.length
+            )));
+        }
+        Ok(path)
     }
 
     /// The corner of `face` nearest to `p`.
