@@ -497,3 +497,52 @@ fn metric_and_weights_flags_read_their_files() {
         assert!(line.contains(needle), "{all:?}: {line}");
     }
 }
+
+/// `geodex mesh-curvature`: a unit sphere's mean curvature is 1 at every
+/// vertex in the N × 4 NPY (k1, k2, mean, gaussian), the PLY carries the
+/// four properties, and too much smoothing is one line naming the flag.
+#[test]
+fn mesh_curvature_writes_the_table_and_the_mesh() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, _) = sphere_obj(&dir);
+    let (ply, npy) = (dir.path().join("c.ply"), dir.path().join("c.npy"));
+    let o = Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .args([
+            "mesh-curvature",
+            "--mesh",
+            s(&mesh_path),
+            "--out",
+            s(&ply),
+            "--npy",
+            s(&npy),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table: ndarray::Array2<f64> = read_npy(&npy).unwrap();
+    assert_eq!(table.shape(), &[642, 4]);
+    for row in table.rows() {
+        assert!((row[2] - 1.0).abs() < 0.03, "mean {}", row[2]);
+        assert!(row[0] >= row[1] && (row[3] - row[0] * row[1]).abs() < 1e-12);
+    }
+    let header = std::fs::read(&ply).unwrap();
+    let text = String::from_utf8_lossy(&header[..400.min(header.len())]).to_string();
+    for p in ["k1", "k2", "mean", "gaussian"] {
+        assert!(text.contains(&format!("property double {p}")), "{text}");
+    }
+    let bad = Command::new(env!("CARGO_BIN_EXE_geodex"))
+        .args([
+            "mesh-curvature",
+            "--mesh",
+            s(&mesh_path),
+            "--out",
+            s(&ply),
+            "--smoothing",
+            "40",
+        ])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--smoothing"), "{err}");
+}

@@ -110,6 +110,8 @@ pub enum Command {
 
     /// Geodesic distance on a triangle mesh file (batch use), written as NPY.
     MeshDistance(mesh_distance::MeshDistanceArgs),
+    /// Principal, mean and Gaussian curvature of a mesh file, as a PLY (or JSON, GLB) with vertex properties.
+    MeshCurvature(mesh_distance::MeshCurvatureArgs),
     /// Remesh a surface: geodesic sampling, Lloyd relaxation, dual of the Voronoi cells.
     Remesh(remesh::RemeshArgs),
     /// Geodesic distance matrix of a mesh file (all pairs or landmark rows), written as NPY.
@@ -153,6 +155,9 @@ pub fn main() -> ExitCode {
         Some(Command::Path(args)) => path::run(&args).map_err(Into::into),
 
         Some(Command::MeshDistance(args)) => mesh_distance::run(&args).map_err(anyhow::Error::msg),
+        Some(Command::MeshCurvature(args)) => {
+            mesh_distance::run_curvature(&args).map_err(anyhow::Error::msg)
+        }
         Some(Command::Remesh(args)) => remesh::run(&args).map_err(anyhow::Error::msg),
         Some(Command::DistanceMatrix(args)) => {
             shape::run_distance_matrix(&args).map_err(anyhow::Error::msg)

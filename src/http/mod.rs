@@ -104,6 +104,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(routes::tensor::tensor_metric))
         .routes(routes!(routes::mesh::distance))
         .routes(routes!(routes::mesh::voronoi))
+        .routes(routes!(routes::mesh::curvature))
         .routes(routes!(routes::mesh::paths))
         .routes(routes!(routes::mesh::sample))
         .routes(routes!(routes::mesh::remesh))

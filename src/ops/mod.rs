@@ -47,6 +47,7 @@ pub mod grid_tensor_distance;
 pub mod grid_tensor_metric;
 pub mod grid_tomography;
 pub mod mesh_correspond;
+pub mod mesh_curvature;
 pub mod mesh_descriptor;
 pub mod mesh_distance;
 pub mod mesh_distance_matrix;

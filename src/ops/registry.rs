@@ -72,6 +72,7 @@ pub const ENTRIES: &[Entry] = &[
     entry::<super::grid_tensor_metric::GridTensorMetricRequest>(),
     entry::<super::mesh_distance::MeshDistanceRequest>(),
     entry::<super::mesh_voronoi::MeshVoronoiRequest>(),
+    entry::<super::mesh_curvature::MeshCurvatureRequest>(),
     entry::<super::mesh_paths::MeshPathsRequest>(),
     entry::<super::mesh_sample::MeshSampleRequest>(),
     entry::<super::mesh_remesh::MeshRemeshRequest>(),

@@ -562,3 +562,101 @@ async fn mesh_metrics_designs_and_face_tensors() {
     )
     .await;
 }
+
+/// `POST /v1/mesh/curvature`: on a sphere of radius 2 every vertex has
+/// `k1 = k2 = 1/2`, `H = 1/2`, `K = 1/4` within 2 %; the result mesh
+/// carries `H` as its `value`, the directions are unit tangent
+/// vectors, the same request runs as a job, and too much smoothing is a
+/// 422 naming `smoothing`.
+#[tokio::test]
+async fn mesh_curvature_of_a_sphere() {
+    let app = spawn(|_| {}).await;
+    let sphere = icosphere(4, 2.0);
+    let meta = upload_mesh(&app, write_obj(&sphere), "model/obj", "").await;
+    let id = meta["id"].as_str().unwrap().to_string();
+    let res = post(&app, "/v1/mesh/curvature", json!({"mesh": id})).await;
+    assert_eq!(res.status(), 200, "{:?}", res.text().await);
+    let body: serde_json::Value = res.json().await.unwrap();
+    assert_eq!(body["smoothing"], 1);
+    for (name, exact) in [("k1", 0.5), ("k2", 0.5), ("mean", 0.5), ("gaussian", 0.25)] {
+        for k in ["min", "max"] {
+            let x = body["stats"][name][k].as_f64().unwrap();
+            assert!((x - exact).abs() <= 0.02 * exact, "{name}.{k} = {x}");
+        }
+    }
+    let url = body["result"]["data_url"].as_str().unwrap().to_string();
+    let j: serde_json::Value = app
+        .get(&format!("{url}?format=json"))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let mean = j["properties"]["value"].as_array().unwrap();
+    assert_eq!(mean.len(), sphere.num_vertices());
+    assert!(mean
+        .iter()
+        .all(|h| (h.as_f64().unwrap() - 0.5).abs() < 0.01));
+    // d1: unit, orthogonal to the returned normal, which is within 1° of
+    // the position's direction on a sphere.
+    let array = |key: &'static str| {
+        let body = body.clone();
+        let app = &app;
+        async move {
+            match app.download(&body[key]).await {
+                geodex::io::ArrayData::F64(a) => a,
+                other => panic!("{other:?}"),
+            }
+        }
+    };
+    let (d1, normal) = (array("d1").await, array("normal").await);
+    assert_eq!(d1.shape(), &[sphere.num_vertices(), 3]);
+    for v in 0..sphere.num_vertices() {
+        let p = sphere.position(v as u32);
+        let d = [d1[[v, 0]], d1[[v, 1]], d1[[v, 2]]];
+        let n = [normal[[v, 0]], normal[[v, 1]], normal[[v, 2]]];
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let across = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+        let radial = (n[0] * p[0] + n[1] * p[1] + n[2] * p[2]) / 2.0;
+        assert!(
+            (len - 1.0).abs() < 1e-9 && across.abs() < 1e-9,
+            "{v}: {d:?}"
+        );
+        assert!(radial > 1f64.to_radians().cos(), "{v}: {n:?}");
+    }
+    // As a job.
+    let job: serde_json::Value = post(
+        &app,
+        "/v1/jobs",
+        json!({"operation": "mesh.curvature", "params": {"mesh": id, "smoothing": 0}}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    let job_id = job["id"].as_str().expect("job id").to_string();
+    let mut done = serde_json::Value::Null;
+    for _ in 0..200 {
+        done = app
+            .get(&format!("/v1/jobs/{job_id}"))
+            .await
+            .json()
+            .await
+            .unwrap();
+        if ["succeeded", "failed", "cancelled"].contains(&done["state"].as_str().unwrap_or("")) {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/curvature",
+            json!({"mesh": id, "smoothing": 33}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("smoothing"), "{p}");
+}

@@ -19,6 +19,7 @@ use crate::http::operation::{respond, run, store_output};
 use crate::http::routes::grid::DatasetRef;
 use crate::http::AppState;
 use crate::ops::mesh_correspond::MeshCorrespondRequest;
+use crate::ops::mesh_curvature::MeshCurvatureRequest;
 use crate::ops::mesh_descriptor::{DescriptorValue, MeshDescriptorRequest};
 use crate::ops::mesh_distance_matrix::MeshDistanceMatrixRequest;
 use crate::ops::mesh_embed::MeshEmbedRequest;
@@ -117,6 +118,39 @@ and the stored mesh carries the cell of every vertex in `label`.",
 pub async fn voronoi(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<MeshVoronoiRequest>,
+) -> Result<Json<MeshResponse>, ApiError> {
+    run_mesh_op(&state, request).await
+}
+
+/// `POST /v1/mesh/curvature`.
+#[utoipa::path(
+    post,
+    path = "/v1/mesh/curvature",
+    tag = "mesh",
+    summary = "Principal, mean and Gaussian curvature of a triangle mesh",
+    description = "Per vertex: the principal curvatures `k1 >= k2` (positive where the surface bends away from its \
+normal, so `1/r` on a sphere of radius `r` with outward normals), their directions `d1`, `d2` and the `normal` \
+(`[vertices, 3]` arrays), the `gaussian_curvature` `k1 k2`, and the mean curvature `(k1 + k2)/2`, carried \
+by the `result` mesh as its `value` vertex property (download `?format=npy&property=value` for the values \
+alone); from the least-squares second fundamental form of the edges' normal curvatures after `smoothing` \
+passes of one-ring averaging of the tensor. `stats` gives the minimum, median and maximum of each.",
+    request_body(content((MeshCurvatureRequest = "application/json"))),
+    responses(
+        (status = 200, description = "Computed and stored.", body = MeshResponse),
+        (status = 400, response = crate::http::openapi::BadRequest),
+        (status = 404, response = crate::http::openapi::NotFound),
+        (status = 413, response = crate::http::openapi::PayloadTooLarge),
+        (status = 415, response = crate::http::openapi::UnsupportedMediaType),
+        (status = 422, response = crate::http::openapi::Unprocessable),
+        (status = 500, response = crate::http::openapi::InternalError),
+        (status = 503, response = crate::http::openapi::Busy),
+        (status = 504, response = crate::http::openapi::DeadlineExceeded),
+        (status = 507, response = crate::http::openapi::InsufficientStorage),
+    )
+)]
+pub async fn curvature(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<MeshCurvatureRequest>,
 ) -> Result<Json<MeshResponse>, ApiError> {
     run_mesh_op(&state, request).await
 }

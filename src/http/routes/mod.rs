@@ -12,7 +12,7 @@
 //! * [`paths`]: `POST /v1/grid/paths`.
 //! * [`inverse`]: `POST /v1/grid/tomography`, `POST /v1/grid/fit-metric`.
 //! * [`tensor`]: `POST /v1/grid/tensor-distance`, `POST /v1/grid/tensor-metric`.
-//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,paths,sample,distance-matrix,embed,descriptor}`.
+//! * [`mesh`]: `POST /v1/mesh/{distance,voronoi,curvature,paths,sample,distance-matrix,embed,descriptor}`.
 //! * [`points`]: `POST /v1/points/isomap`.
 //! * [`docs`]: `/openapi.json` and the Swagger UI at `/docs`.
 //! * [`jobs`]: `/v1/jobs`: durable background jobs of any operation.
