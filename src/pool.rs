@@ -281,8 +281,7 @@ impl SolverPool {
         let waiting = Count::enter(&self.waiting, telemetry::QUEUE_DEPTH);
         let running = Arc::clone(&self.running);
         self.pool.spawn(move || {
-            let _permit = permit;
-            let _held = held;
+            let slot = (permit, held);
             drop(waiting);
             if flag.load(Ordering::Relaxed) {
                 return; // cancelled before it started: never run it
@@ -315,6 +314,9 @@ impl SolverPool {
                 queue_seconds: started.duration_since(admitted).as_secs_f64(),
                 run_seconds,
             };
+            // The slot and the memory come back before the result is handed
+            // over, so that a caller who sees the result sees them free.
+            drop(slot);
             // The receiver is gone when the request was cancelled; nothing to do.
             let _ = tx.send((out, timing));
         });
