@@ -538,7 +538,7 @@ fn mesh_curvature_writes_the_table_and_the_mesh() {
             "--out",
             s(&ply),
             "--smoothing",
-            "40",
+            "2000",
         ])
         .output()
         .unwrap();

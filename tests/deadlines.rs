@@ -243,6 +243,11 @@ async fn slow_cases(app: &TestApp) -> Vec<(&'static str, &'static str, Value)> {
             json!({"mesh": mesh, "sources": [{"vertex": 0}, {"vertex": 7}], "method": "exact"}),
         ),
         (
+            "mesh.curvature",
+            "/v1/mesh/curvature",
+            json!({"mesh": mesh, "smoothing": 1024}),
+        ),
+        (
             "mesh.paths",
             "/v1/mesh/paths",
             json!({"mesh": mesh, "sources": [{"vertex": 0}], "ends": [{"vertex": 9}], "method": "exact"}),

@@ -313,7 +313,7 @@ pub struct MeshCurvatureArgs {
     /// The mesh: OBJ, PLY (ASCII or binary), OFF or STL.
     #[arg(long, value_name = "MESH")]
     pub mesh: PathBuf,
-    /// Passes of one-ring smoothing of the curvature tensor (0-32; 2-4 for noisy scans).
+    /// Passes of one-ring smoothing of the curvature tensor (0-1024; 2-4 for noisy scans).
     #[arg(long, default_value_t = 1)]
     pub smoothing: usize,
     /// Output: the mesh with per-vertex `k1`, `k2`, `mean`, `gaussian` (`.ply`, `.json` or `.glb`).

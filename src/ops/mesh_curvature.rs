@@ -23,10 +23,10 @@ use crate::numerics::Control;
 pub struct MeshCurvatureRequest {
     /// Id of the mesh dataset.
     pub mesh: String,
-    /// Passes of one-ring smoothing of the curvature tensor, `0 ..= 32`
+    /// Passes of one-ring smoothing of the curvature tensor, `0 ..= 1024`
     /// (noisy scans want 2-4). Default: 1.
     #[serde(default = "one")]
-    #[schema(maximum = 32)]
+    #[schema(maximum = 1024)]
     pub smoothing: usize,
 }
 
@@ -95,8 +95,8 @@ impl Operation for MeshCurvatureRequest {
         let column = |f: &dyn Fn(usize) -> f64| -> Vec<f64> { (0..n).map(f).collect() };
         let k1 = column(&|v| c[v].k1);
         let k2 = column(&|v| c[v].k2);
-        let mean = column(&|v| c[v].mean());
-        let gaussian = column(&|v| c[v].gaussian());
+        let mean = column(&|v| c[v].mean_curvature());
+        let gaussian = column(&|v| c[v].gauss_curvature());
         let stats = |x: &[f64]| {
             CurvatureStats::of(x.iter().zip(&used).filter(|(_, &u)| u).map(|(&v, _)| v))
         };

@@ -3,7 +3,7 @@
 
 pub use super::spec::mesh::MeshDistanceRequest;
 use super::spec::mesh::{compute, validate_common, vertex_output};
-use super::spec::mesh_metric::validate_metric;
+use super::spec::mesh_metric::{mesh_dataset_ids, validate_metric};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::Control;
 
@@ -16,14 +16,7 @@ impl Operation for MeshDistanceRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = vec![("mesh".to_string(), self.mesh.clone())];
-        if let Some(w) = &self.weights {
-            ids.push(("weights".into(), w.clone()));
-        }
-        if let Some(m) = &self.metric {
-            ids.extend(m.dataset_ids());
-        }
-        ids
+        mesh_dataset_ids(&self.mesh, self.weights.as_deref(), self.metric.as_ref())
     }
 
     fn run(

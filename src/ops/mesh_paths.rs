@@ -11,7 +11,7 @@ use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::{
     check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
 };
-use super::spec::mesh_metric::{resolve_metric, validate_metric, MeshMetricSpec};
+use super::spec::mesh_metric::{mesh_dataset_ids, resolve_metric, validate_metric, MeshMetricSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::exact::exact_paths;
 use crate::numerics::mesh::paths::{trace_path_in, PathLocation};
@@ -126,14 +126,7 @@ impl Operation for MeshPathsRequest {
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        let mut ids = vec![("mesh".to_string(), self.mesh.clone())];
-        if let Some(w) = &self.weights {
-            ids.push(("weights".into(), w.clone()));
-        }
-        if let Some(m) = &self.metric {
-            ids.extend(m.dataset_ids());
-        }
-        ids
+        mesh_dataset_ids(&self.mesh, self.weights.as_deref(), self.metric.as_ref())
     }
 
     fn run(

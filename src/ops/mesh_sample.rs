@@ -9,8 +9,10 @@ use utoipa::ToSchema;
 use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::vertex_output;
 use super::spec::mesh::{get_mesh, heat_solver, HeatSpec, MeshMethodSpec, MeshStats};
+use super::spec::mesh_metric::{mesh_dataset_ids, resolve_metric, validate_metric, MeshMetricSpec};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
-use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
+use crate::numerics::mesh::fast_marching::Metric;
+use crate::numerics::mesh::sampling::{farthest_point_sampling_in, SamplingOptions};
 use crate::numerics::mesh::MeshMethod;
 use crate::numerics::Control;
 
@@ -36,6 +38,15 @@ pub struct MeshSampleRequest {
     /// The distance method. Default: `fast_marching`.
     #[serde(default)]
     pub method: MeshMethodSpec,
+    /// Id of an array dataset with one weight `W > 0` per vertex: samples
+    /// are denser where `W` is large (`fast_marching` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<String>,
+    /// A metric designed on the surface (curvature: denser samples on
+    /// ridges; a field) or anisotropic (face tensors: cells stretched by
+    /// the metric), instead of `weights` (`fast_marching` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<MeshMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,
@@ -66,11 +77,26 @@ impl Operation for MeshSampleRequest {
         if !(self.heat.m.is_finite() && self.heat.m > 0.0) {
             return Err(OpError::invalid("heat.m", "must be finite and > 0"));
         }
+        validate_metric(self.weights.as_deref(), self.metric.as_ref(), self.method)?;
+        if self.method != MeshMethodSpec::FastMarching {
+            if self.metric.is_some() {
+                return Err(OpError::invalid(
+                    "metric",
+                    "sampling under a metric runs with `method: fast_marching`",
+                ));
+            }
+            if self.weights.is_some() {
+                return Err(OpError::invalid(
+                    "weights",
+                    "sampling under weights runs with `method: fast_marching`",
+                ));
+            }
+        }
         Ok(())
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        vec![("mesh".to_string(), self.mesh.clone())]
+        mesh_dataset_ids(&self.mesh, self.weights.as_deref(), self.metric.as_ref())
     }
 
     fn run(
@@ -99,7 +125,18 @@ impl Operation for MeshSampleRequest {
             None
         };
         let started = Instant::now();
-        let s = farthest_point_sampling(
+        let resolved = resolve_metric(
+            inputs,
+            &input,
+            self.weights.as_deref(),
+            self.metric.as_ref(),
+            control,
+        )?;
+        let metric = match &resolved.tensors {
+            Some(t) => Metric::Faces(t),
+            None => Metric::Weights(resolved.weights.as_deref()),
+        };
+        let s = farthest_point_sampling_in(
             &input.mesh,
             &input.topology,
             &SamplingOptions {
@@ -108,6 +145,7 @@ impl Operation for MeshSampleRequest {
                 first: self.first,
                 method,
             },
+            metric,
             heat.as_deref(),
             control,
         )

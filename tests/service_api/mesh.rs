@@ -484,6 +484,28 @@ async fn mesh_metrics_designs_and_face_tensors() {
     .await;
     assert_eq!(res.status(), 200, "{:?}", res.text().await);
 
+    // Sampling under a designed metric, and refused with another method.
+    let res = post(
+        &app,
+        "/v1/mesh/sample",
+        json!({"mesh": id, "count": 20,
+               "metric": {"kind": "field", "field": field_id, "mode": "value", "reference": 0.5}}),
+    )
+    .await;
+    assert_eq!(res.status(), 200, "{:?}", res.text().await);
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/sample",
+            json!({"mesh": id, "count": 20, "method": "dijkstra",
+                   "metric": {"kind": "curvature"}}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("metric"), "{p}");
+
     // Misuse: each a 422 naming the field.
     let short = app
         .upload(&ArrayData::F64(
@@ -652,7 +674,7 @@ async fn mesh_curvature_of_a_sphere() {
         post(
             &app,
             "/v1/mesh/curvature",
-            json!({"mesh": id, "smoothing": 33}),
+            json!({"mesh": id, "smoothing": 2000}),
         )
         .await,
         422,

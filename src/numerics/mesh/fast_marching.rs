@@ -293,13 +293,22 @@ fn unfold(
         if nrm[0] * p.1[0] + nrm[1] * p.1[1] < 0.0 {
             nrm = [-nrm[0], -nrm[1]];
         }
-        // `g` laid out from its own lengths, scaled to the shared edge's
-        // length in the layout (1 in the Euclidean metric).
-        let lg = lg2.sqrt();
-        let scale = l / lg;
-        let xg = (lp2 - lq2 + lg2) / (2.0 * lg);
-        let yg = (lp2 - xg * xg).max(0.0).sqrt();
-        let (x, y) = (xg * scale, yg * scale);
+        let (x, y) = if tensors.is_some() {
+            // `g` laid out from its own lengths, scaled to the shared
+            // edge's length in the layout.
+            let lg = lg2.sqrt();
+            let scale = l / lg;
+            let xg = (lp2 - lq2 + lg2) / (2.0 * lg);
+            let yg = (lp2 - xg * xg).max(0.0).sqrt();
+            (xg * scale, yg * scale)
+        } else {
+            // Euclidean: the layout keeps every length, so the shared
+            // edge is `l` already.
+            let lp = super::norm(sub(pv, pp));
+            let lq = super::norm(sub(pv, pq));
+            let x = (lp * lp - lq * lq + l * l) / (2.0 * l);
+            (x, (lp * lp - x * x).max(0.0).sqrt())
+        };
         let v2 = [
             p.1[0] + x * u[0] + y * nrm[0],
             p.1[1] + x * u[1] + y * nrm[1],

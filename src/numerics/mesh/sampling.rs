@@ -13,10 +13,10 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use super::fast_marching::{march_with, MarchPrep, MarchWork};
+use super::fast_marching::{check_tensors, march_metric, MarchPrep, MarchWork, Metric};
 use super::heat::HeatSolver;
 use super::solve::{mesh_distance, MeshDistanceOptions, MeshMethod};
-use super::sources::{seeds, VertexGraph};
+use super::sources::{check_weights, seeds, VertexGraph};
 use super::{norm, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh};
 use crate::numerics::heap::IndexedHeap;
 use crate::numerics::Control;
@@ -64,7 +64,33 @@ pub fn farthest_point_sampling(
     heat: Option<&HeatSolver>,
     control: &Control<'_>,
 ) -> Result<Sampling, MeshSolveError> {
+    farthest_point_sampling_in(mesh, topo, options, Metric::Weights(None), heat, control)
+}
+
+/// [`farthest_point_sampling`] under a metric: per-vertex weights `W` (the
+/// covering radius is then in `W`-lengths, so samples are denser where `W`
+/// is large) or one tensor per face (cells stretched by the metric). Any
+/// metric but `W = 1` needs [`MeshMethod::FastMarching`].
+pub fn farthest_point_sampling_in(
+    mesh: &TriMesh,
+    topo: &Topology,
+    options: &SamplingOptions,
+    metric: Metric<'_>,
+    heat: Option<&HeatSolver>,
+    control: &Control<'_>,
+) -> Result<Sampling, MeshSolveError> {
     let n = mesh.num_vertices();
+    let plain = matches!(metric, Metric::Weights(None));
+    if !plain && options.method != MeshMethod::FastMarching {
+        return Err(MeshSolveError::InvalidOption {
+            option: "metric",
+            reason: "a metric other than W = 1 needs fast_marching".into(),
+        });
+    }
+    match metric {
+        Metric::Weights(w) => check_weights(mesh, w)?,
+        Metric::Faces(t) => check_tensors(mesh, t)?,
+    }
     if options.count.is_none() && options.radius.is_none() {
         return Err(MeshSolveError::InvalidOption {
             option: "count",
@@ -109,8 +135,10 @@ pub fn farthest_point_sampling(
         distance: vec![f64::INFINITY; n],
         labels: vec![-1; n],
     };
-    let prep =
-        matches!(options.method, MeshMethod::FastMarching).then(|| MarchPrep::new(mesh, topo));
+    let prep = matches!(options.method, MeshMethod::FastMarching).then(|| match metric {
+        Metric::Faces(t) => MarchPrep::with_tensors(mesh, topo, t),
+        Metric::Weights(_) => MarchPrep::new(mesh, topo),
+    });
     let graph = matches!(
         options.method,
         MeshMethod::Dijkstra | MeshMethod::FastMarching
@@ -137,12 +165,12 @@ pub fn farthest_point_sampling(
                 let mut s = seeds(mesh, &src, None)?;
                 s[0].label = label;
                 if let (Some(work), Some(graph)) = (work.as_mut(), graph.as_ref()) {
-                    march_with(
+                    march_metric(
                         work,
                         mesh,
                         prep,
                         &s,
-                        None,
+                        metric,
                         f64::INFINITY,
                         &mut field,
                         &inner,
@@ -427,5 +455,51 @@ mod tests {
         let r = farthest_point_sampling(&mesh, &topo, &options, None, &control);
         raiser.join().expect("raiser");
         assert!(matches!(r, Err(MeshSolveError::Cancelled)), "{r:?}");
+    }
+
+    /// Under `W = 3` on the half `x > 0.5` of the square, the covering
+    /// radius is uniform in `W`-lengths, so that half holds about nine
+    /// times as many samples per area: at least three quarters of them.
+    #[test]
+    fn weights_make_samples_denser() {
+        let mesh = crate::numerics::mesh::shapes::flat_square(40, 1.0, 0.0);
+        let topo = Topology::new(&mesh);
+        let w: Vec<f64> = mesh
+            .positions()
+            .iter()
+            .map(|p| if p[0] > 0.5 { 3.0 } else { 1.0 })
+            .collect();
+        let options = SamplingOptions {
+            count: Some(60),
+            ..Default::default()
+        };
+        let s = farthest_point_sampling_in(
+            &mesh,
+            &topo,
+            &options,
+            Metric::Weights(Some(&w)),
+            None,
+            &Control::new(),
+        )
+        .unwrap();
+        let right = s
+            .samples
+            .iter()
+            .filter(|&&v| mesh.position(v)[0] > 0.5)
+            .count();
+        assert!(right >= 45, "{right} of 60 on the heavy half");
+        let dijkstra = SamplingOptions {
+            method: MeshMethod::Dijkstra,
+            ..options
+        };
+        assert!(farthest_point_sampling_in(
+            &mesh,
+            &topo,
+            &dijkstra,
+            Metric::Weights(Some(&w)),
+            None,
+            &Control::new()
+        )
+        .is_err());
     }
 }

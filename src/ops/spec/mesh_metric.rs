@@ -69,7 +69,7 @@ pub struct CurvatureDesignSpec {
     /// Passes of one-ring smoothing of the curvature tensor (noisy scans
     /// want 2-4). Default: 1.
     #[serde(default = "one_pass")]
-    #[schema(maximum = 32)]
+    #[schema(maximum = 1024)]
     pub smoothing: usize,
 }
 
@@ -172,6 +172,23 @@ impl MeshMetricSpec {
     }
 }
 
+/// The `(field, dataset id)` pairs of a mesh request: `mesh`, then
+/// `weights` and the datasets its `metric` reads.
+pub(crate) fn mesh_dataset_ids(
+    mesh: &str,
+    weights: Option<&str>,
+    metric: Option<&MeshMetricSpec>,
+) -> Vec<(String, String)> {
+    let mut ids = vec![("mesh".to_string(), mesh.to_string())];
+    if let Some(w) = weights {
+        ids.push(("weights".into(), w.to_string()));
+    }
+    if let Some(m) = metric {
+        ids.extend(m.dataset_ids());
+    }
+    ids
+}
+
 /// Checks the shape of `weights`/`metric` against the method, before any
 /// dataset is read.
 pub(crate) fn validate_metric(
@@ -209,7 +226,7 @@ pub(crate) fn validate_metric(
             positive("metric.epsilon", c.epsilon)?;
             positive("metric.power", c.power)?;
             if c.smoothing > crate::numerics::mesh::curvature::MAX_SMOOTHING {
-                return Err(OpError::invalid("metric.smoothing", "at most 32 passes"));
+                return Err(OpError::invalid("metric.smoothing", "at most 1024 passes"));
             }
         }
         MeshMetricSpec::Field(f) => {
