@@ -32,7 +32,7 @@ use crate::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use crate::io::{self, ArrayData};
 use crate::ops::spec::mesh::MeshDistanceRequest;
 use crate::ops::spec::mesh::{HeatSpec, LaplacianSpec, MeshInput, MeshMethodSpec, MeshPointSpec};
-use crate::ops::spec::mesh_metric::MeshMetricSpec;
+use crate::ops::spec::mesh_metric::SurfaceMetricSpec;
 use crate::ops::{InputArray, Inputs};
 use crate::problem::ApiError;
 use crate::runner::LoadInputs;
@@ -237,7 +237,7 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         weights: args.weights.as_ref().map(|p| p.display().to_string()),
         metric: match &args.metric {
             Some(json) => Some(
-                serde_json::from_str::<MeshMetricSpec>(json)
+                serde_json::from_str::<SurfaceMetricSpec>(json)
                     .map_err(|e| format!("--metric: not a metric section: {e}"))?,
             ),
             None => None,

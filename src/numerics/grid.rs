@@ -91,7 +91,9 @@ impl Grid {
         if let Some(axis) = shape.iter().position(|&n| n == 0) {
             return Err(GridError::EmptyAxis { axis });
         }
-        let cells = shape.iter().map(|&n| n as u128).product::<u128>();
+        let cells = shape
+            .iter()
+            .fold(1u128, |a, &n| a.saturating_mul(n as u128));
         if cells > MAX_CELLS as u128 {
             return Err(GridError::TooLarge(cells));
         }

@@ -91,7 +91,9 @@ impl Operation for GridSampleRequest {
             }
         };
         check_spacing(&self.spacing)?;
-        let cells = shape.as_ref().map(|s| s.iter().product::<usize>());
+        let cells = shape
+            .as_ref()
+            .map(|s| s.iter().fold(1usize, |a, &n| a.saturating_mul(n)));
         match (self.count, self.radius) {
             (None, None) => {
                 return Err(OpError::invalid("count", "give `count`, `radius` or both"))

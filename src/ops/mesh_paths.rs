@@ -11,7 +11,9 @@ use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::{
     check_points, get_mesh, run_distance, validate_common, HeatSpec, MeshMethodSpec, MeshPointSpec,
 };
-use super::spec::mesh_metric::{mesh_dataset_ids, resolve_metric, validate_metric, MeshMetricSpec};
+use super::spec::mesh_metric::{
+    mesh_dataset_ids, resolve_metric, validate_metric, SurfaceMetricSpec,
+};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::exact::exact_paths;
 use crate::numerics::mesh::paths::{trace_path_in, PathLocation};
@@ -49,7 +51,7 @@ pub struct MeshPathsRequest {
     /// (face tensors, `fast_marching` only: the path then follows the
     /// characteristic direction `−M⁻¹∇U`), instead of `weights`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub metric: Option<MeshMetricSpec>,
+    pub metric: Option<SurfaceMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,

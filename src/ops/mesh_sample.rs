@@ -9,7 +9,9 @@ use utoipa::ToSchema;
 use super::spec::errors::mesh_solve_error;
 use super::spec::mesh::vertex_output;
 use super::spec::mesh::{get_mesh, heat_solver, HeatSpec, MeshMethodSpec, MeshStats};
-use super::spec::mesh_metric::{mesh_dataset_ids, resolve_metric, validate_metric, MeshMetricSpec};
+use super::spec::mesh_metric::{
+    mesh_dataset_ids, resolve_metric, validate_metric, SurfaceMetricSpec,
+};
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
 use crate::numerics::mesh::fast_marching::Metric;
 use crate::numerics::mesh::sampling::{farthest_point_sampling_in, SamplingOptions};
@@ -46,7 +48,7 @@ pub struct MeshSampleRequest {
     /// ridges; a field) or anisotropic (face tensors: cells stretched by
     /// the metric), instead of `weights` (`fast_marching` only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub metric: Option<MeshMetricSpec>,
+    pub metric: Option<SurfaceMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,

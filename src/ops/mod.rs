@@ -107,7 +107,9 @@ pub trait Operation: Serialize + DeserializeOwned + Send + Sync + 'static {
             .ok()
             .and_then(|v| v.pointer("/cost/shape").cloned())
             .and_then(|s| serde_json::from_value::<Vec<usize>>(s).ok())
-            .map_or(0, |shape| shape.iter().product::<usize>());
+            .map_or(0, |shape| {
+                shape.iter().fold(1usize, |a, &n| a.saturating_mul(n))
+            });
         estimate_peak_bytes(&self.dataset_ids(), inputs, constant_cells)
     }
 

@@ -29,11 +29,19 @@ pub fn check_shape(shape: &[usize], field: &str, limits: &OpLimits) -> Result<()
             "an axis has length 0",
         ));
     }
-    let cells = shape.iter().map(|&n| n as u128).product::<u128>();
+    // Three axes of up to 2^64 overflow even u128: saturate.
+    let cells = shape
+        .iter()
+        .fold(1u128, |a, &n| a.saturating_mul(n as u128));
     if cells > limits.max_cells as u128 {
+        let count = if cells == u128::MAX {
+            "more than 3.4e38".to_string()
+        } else {
+            cells.to_string()
+        };
         return Err(OpError::TooLarge {
             field: field.into(),
-            reason: format!("{cells} cells, more than the limit of {}", limits.max_cells),
+            reason: format!("{count} cells, more than the limit of {}", limits.max_cells),
         });
     }
     Ok(())
@@ -147,4 +155,27 @@ pub fn preload(
         map.insert(id.clone(), fetch(inputs, field, id)?);
     }
     Ok(map)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Schemathesis sent `[2^56, 4.96e17, 11509]` to `grid.tomography`: a
+    /// product beyond `u128` panicked (500). It is a 413 naming the field.
+    #[test]
+    fn a_shape_beyond_u128_is_too_large_not_a_panic() {
+        let limits = OpLimits::default();
+        let shape = [72057594037927935, 496387267883029248, 11509];
+        match check_shape(&shape, "shape", &limits) {
+            Err(OpError::TooLarge { field, reason }) => {
+                assert_eq!(field, "shape");
+                assert!(reason.contains("more than 3.4e38"), "{reason}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let huge = [usize::MAX, usize::MAX, usize::MAX];
+        assert!(check_shape(&huge, "shape", &limits).is_err());
+        assert!(crate::numerics::Grid::unit(&huge).is_err());
+    }
 }

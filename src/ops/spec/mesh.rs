@@ -10,7 +10,7 @@ use utoipa::ToSchema;
 use ndarray::ArrayD;
 
 use super::errors::mesh_solve_error;
-use super::mesh_metric::{resolve_metric, validate_metric, MeshMetricSpec, ResolvedMeshMetric};
+use super::mesh_metric::{resolve_metric, validate_metric, ResolvedMeshMetric, SurfaceMetricSpec};
 use crate::io::mesh::MeshReport;
 use crate::io::ArrayData;
 use crate::numerics::mesh::{
@@ -456,7 +456,7 @@ pub struct MeshDistanceRequest {
     /// A metric designed on the surface (curvature, field) or anisotropic
     /// (face tensors, `fast_marching` only), instead of `weights`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub metric: Option<MeshMetricSpec>,
+    pub metric: Option<SurfaceMetricSpec>,
     /// Heat method options.
     #[serde(default)]
     pub heat: HeatSpec,

@@ -22,7 +22,7 @@ use crate::ops::{Inputs, OpError};
 /// The metric on the surface. Exclusive with `weights`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub enum MeshMetricSpec {
+pub enum SurfaceMetricSpec {
     /// `W = 1/(ε + g^p)` with `g` the normalised ridge, valley or bend
     /// strength from the principal curvatures: paths follow crests.
     Curvature(CurvatureDesignSpec),
@@ -154,7 +154,7 @@ pub(crate) struct ResolvedMeshMetric {
     pub tensors: Option<Vec<[f64; 6]>>,
 }
 
-impl MeshMetricSpec {
+impl SurfaceMetricSpec {
     /// True for the anisotropic kinds.
     pub fn is_anisotropic(&self) -> bool {
         matches!(self, Self::CurvatureTensors(_) | Self::Tensors(_))
@@ -177,7 +177,7 @@ impl MeshMetricSpec {
 pub(crate) fn mesh_dataset_ids(
     mesh: &str,
     weights: Option<&str>,
-    metric: Option<&MeshMetricSpec>,
+    metric: Option<&SurfaceMetricSpec>,
 ) -> Vec<(String, String)> {
     let mut ids = vec![("mesh".to_string(), mesh.to_string())];
     if let Some(w) = weights {
@@ -193,7 +193,7 @@ pub(crate) fn mesh_dataset_ids(
 /// dataset is read.
 pub(crate) fn validate_metric(
     weights: Option<&str>,
-    metric: Option<&MeshMetricSpec>,
+    metric: Option<&SurfaceMetricSpec>,
     method: MeshMethodSpec,
 ) -> Result<(), OpError> {
     let Some(metric) = metric else {
@@ -222,14 +222,14 @@ pub(crate) fn validate_metric(
         ));
     }
     match metric {
-        MeshMetricSpec::Curvature(c) => {
+        SurfaceMetricSpec::Curvature(c) => {
             positive("metric.epsilon", c.epsilon)?;
             positive("metric.power", c.power)?;
             if c.smoothing > crate::numerics::mesh::curvature::MAX_SMOOTHING {
                 return Err(OpError::invalid("metric.smoothing", "at most 1024 passes"));
             }
         }
-        MeshMetricSpec::Field(f) => {
+        SurfaceMetricSpec::Field(f) => {
             positive("metric.epsilon", f.epsilon)?;
             positive("metric.power", f.power)?;
             match (f.mode, f.reference) {
@@ -245,7 +245,7 @@ pub(crate) fn validate_metric(
                 _ => {}
             }
         }
-        MeshMetricSpec::CurvatureTensors(c) => {
+        SurfaceMetricSpec::CurvatureTensors(c) => {
             if !(c.max_ratio.is_finite() && (1.0..=100.0).contains(&c.max_ratio)) {
                 return Err(OpError::invalid(
                     "metric.max_ratio",
@@ -253,7 +253,7 @@ pub(crate) fn validate_metric(
                 ));
             }
         }
-        MeshMetricSpec::Tensors(t) => match (&t.dataset, &t.constant) {
+        SurfaceMetricSpec::Tensors(t) => match (&t.dataset, &t.constant) {
             (Some(_), None) => {}
             (None, Some(m)) => {
                 if m.iter().flatten().any(|x| !x.is_finite()) {
@@ -300,7 +300,7 @@ pub(crate) fn resolve_metric(
     inputs: &dyn Inputs,
     input: &MeshInput,
     weights: Option<&str>,
-    metric: Option<&MeshMetricSpec>,
+    metric: Option<&SurfaceMetricSpec>,
     control: &Control<'_>,
 ) -> Result<ResolvedMeshMetric, OpError> {
     let mesh = &input.mesh;
@@ -322,7 +322,7 @@ pub(crate) fn resolve_metric(
         });
     };
     match metric {
-        MeshMetricSpec::Curvature(c) => {
+        SurfaceMetricSpec::Curvature(c) => {
             let d = MeshDesign::Curvature {
                 feature: match c.feature {
                     CurvatureFeatureSpec::Ridges => CurvatureFeature::Ridges,
@@ -339,7 +339,7 @@ pub(crate) fn resolve_metric(
                 tensors: None,
             })
         }
-        MeshMetricSpec::Field(f) => {
+        SurfaceMetricSpec::Field(f) => {
             let a = inputs
                 .get(&f.field)
                 .ok_or_else(|| OpError::UnknownDataset {
@@ -374,7 +374,7 @@ pub(crate) fn resolve_metric(
                 tensors: None,
             })
         }
-        MeshMetricSpec::CurvatureTensors(c) => Ok(ResolvedMeshMetric {
+        SurfaceMetricSpec::CurvatureTensors(c) => Ok(ResolvedMeshMetric {
             weights: None,
             tensors: Some(face_tensors_from_curvature(
                 mesh,
@@ -382,7 +382,7 @@ pub(crate) fn resolve_metric(
                 c.max_ratio,
             )),
         }),
-        MeshMetricSpec::Tensors(t) => {
+        SurfaceMetricSpec::Tensors(t) => {
             let nf = mesh.num_faces();
             let tensors: Vec<[f64; 6]> = match (&t.dataset, &t.constant) {
                 (_, Some(m)) => vec![packed(m); nf],
