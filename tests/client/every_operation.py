@@ -261,6 +261,16 @@ def every_operation(run: Run) -> None:
     run.post("mesh", "mesh_paths", "MeshPathsRequest",
              {"mesh": mesh, "sources": [{"vertex": 0}], "ends": [{"vertex": 150}, {"face": 40, "bary": [0.3, 0.3, 0.4]}]})
     run.post("mesh", "mesh_sample", "MeshSampleRequest", {"mesh": mesh, "count": 10})
+    run.post("mesh", "curvature", "MeshCurvatureRequest", {"mesh": mesh, "smoothing": 2})
+    # The surface metric section through the generated models: a design, the
+    # curvature tensors and a constant tensor.
+    run.post("mesh", "mesh_sample", "MeshSampleRequest",
+             {"mesh": mesh, "count": 10, "metric": {"kind": "curvature", "feature": "both"}})
+    run.post("mesh", "mesh_distance", "MeshDistanceRequest",
+             {"mesh": mesh, "sources": [{"vertex": 0}], "metric": {"kind": "curvature_tensors", "max_ratio": 4}})
+    run.post("mesh", "mesh_paths", "MeshPathsRequest",
+             {"mesh": mesh, "sources": [{"vertex": 0}], "ends": [{"vertex": 150}],
+              "metric": {"kind": "tensors", "constant": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}})
     run.post("mesh", "remesh", "MeshRemeshRequest", {"mesh": mesh, "count": 120})
     run.post("mesh", "distance_matrix", "MeshDistanceMatrixRequest",
              {"mesh": mesh, "landmarks": 4, "method": "heat"})
