@@ -164,7 +164,9 @@ pub async fn curvature(
     description = "A path from the nearest source to each point of `ends`, by steepest descent of the distance \
 field across faces (or, with `method: exact`, backtracked through the exact windows): 3D polylines from the \
 source to the end whose points name their `vertex`, `edge` or `face`, with `geodesic_length` (the distance at \
-the end) and `euclidean_length` (the polyline's length).",
+the end), `euclidean_length` (the polyline's length) and `traced` (`windows`, or `descent`: an exact path \
+that could not be followed back across near-degenerate faces descends the exact field instead, and `note` \
+says why). Under face tensors (`metric`) the descent follows `−M⁻¹∇U`.",
     request_body(content((MeshPathsRequest = "application/json"))),
     responses(
         (status = 200, description = "The paths.", body = MeshResponse),
