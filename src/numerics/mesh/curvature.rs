@@ -381,22 +381,17 @@ pub fn face_tensors_from_curvature(
     let eig: Vec<([f64; 3], [f64; 3], f64, f64)> = mesh
         .faces()
         .iter()
-        .map(|face| {
+        .enumerate()
+        .map(|(f, face)| {
             let mut t = [0.0f64; 6];
             for &v in face {
                 for (x, &y) in t.iter_mut().zip(&tv[v as usize]) {
                     *x += y / 3.0;
                 }
             }
-            let p0 = mesh.position(face[0]);
-            let e = sub(mesh.position(face[1]), p0);
-            let nf = face_normal(mesh, *face);
-            let (le, ln) = (norm(e), norm(nf));
-            if le <= 0.0 || ln <= 0.0 {
+            let Some((x, y)) = super::face_frame(mesh, f as u32) else {
                 return ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.0, 0.0);
-            }
-            let x = e.map(|c| c / le);
-            let y = cross(nf.map(|c| c / ln), x);
+            };
             let (l1, l2, q) = eigen2(form(&t, x, x), form(&t, x, y), form(&t, y, y));
             let q1: [f64; 3] = std::array::from_fn(|j| q[0] * x[j] + q[1] * y[j]);
             let q2: [f64; 3] = std::array::from_fn(|j| -q[1] * x[j] + q[0] * y[j]);

@@ -44,8 +44,8 @@
 //! # Ok::<(), geodex::numerics::mesh::MeshSolveError>(())
 //! ```
 
-use super::curvature::{curvature, face_normal};
-use super::{cross, dot, norm, sub, MeshSolveError, Topology, TriMesh};
+use super::curvature::curvature;
+use super::{face_gradient, norm, MeshSolveError, Topology, TriMesh};
 use crate::numerics::Control;
 
 /// Which bends of the surface a curvature design makes cheap.
@@ -231,25 +231,10 @@ pub fn gradient_norms(
     f: &[f64],
     control: &Control<'_>,
 ) -> Result<Vec<f64>, MeshSolveError> {
-    let per_face: Vec<(f64, f64)> = mesh
-        .faces()
-        .iter()
-        .map(|face| {
-            let p = face.map(|v| mesh.position(v));
-            let n = face_normal(mesh, *face);
-            let a2 = norm(n);
-            if a2.is_nan() || a2 <= 0.0 {
-                return (0.0, 0.0);
-            }
-            let nn = n.map(|c| c / a2);
-            let mut g = [0.0; 3];
-            for k in 0..3 {
-                let r = cross(nn, sub(p[(k + 2) % 3], p[(k + 1) % 3]));
-                for (gc, rc) in g.iter_mut().zip(r) {
-                    *gc += f[face[k] as usize] * rc / a2;
-                }
-            }
-            (dot(g, g).sqrt(), 0.5 * a2)
+    let per_face: Vec<(f64, f64)> = (0..mesh.num_faces() as u32)
+        .map(|fi| match face_gradient(mesh, fi, f) {
+            Some(g) => (norm(g), mesh.face_area(fi as usize)),
+            None => (0.0, 0.0),
         })
         .collect();
     if control.is_cancelled() {
@@ -322,16 +307,7 @@ mod tests {
     fn a_ridge_design_follows_the_ridge() {
         let mesh = folded_sheet(40, 0.5, 0.02);
         let topo = Topology::new(&mesh);
-        let mean_edge = {
-            let (mut s, mut c) = (0.0, 0.0);
-            for f in mesh.faces() {
-                for k in 0..3 {
-                    s += norm(sub(mesh.position(f[k]), mesh.position(f[(k + 1) % 3])));
-                    c += 1.0;
-                }
-            }
-            s / c
-        };
+        let mean_edge = mesh.mean_edge_length();
         let w = design(
             &mesh,
             &topo,

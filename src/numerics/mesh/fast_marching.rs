@@ -91,22 +91,16 @@ pub fn check_tensors(mesh: &TriMesh, tensors: &[[f64; 6]]) -> Result<(), MeshSol
             reason: format!("{} tensors for {} faces", tensors.len(), mesh.num_faces()),
         });
     }
-    for (f, (m, face)) in tensors.iter().zip(mesh.faces()).enumerate() {
+    for (f, m) in tensors.iter().enumerate() {
         if m.iter().any(|x| !x.is_finite()) {
             return Err(MeshSolveError::InvalidOption {
                 option: "tensors",
                 reason: format!("the tensor of face {f} has a non-finite entry"),
             });
         }
-        let p0 = mesh.position(face[0]);
-        let e = sub(mesh.position(face[1]), p0);
-        let n = super::cross(e, sub(mesh.position(face[2]), p0));
-        let (le, ln) = (super::norm(e), super::norm(n));
-        if le <= 0.0 || ln <= 0.0 {
+        let Some((x, y)) = super::face_frame(mesh, f as u32) else {
             continue;
-        }
-        let x = e.map(|c| c / le);
-        let y = super::cross(n.map(|c| c / ln), x);
+        };
         let (a, b, c) = (
             tensor_form(m, x, x),
             tensor_form(m, x, y),

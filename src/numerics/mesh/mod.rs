@@ -517,6 +517,46 @@ pub fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
+/// The gradient in face `f` of the linear interpolant of the per-vertex
+/// `values`: `∇f = Σ_k f_k (n × e_k) / 2A`, with `n` the unit normal and
+/// `e_k` the edge opposite corner `k`; `None` for a face of zero (or NaN)
+/// area.
+pub fn face_gradient(mesh: &TriMesh, f: u32, values: &[f64]) -> Option<[f64; 3]> {
+    let face = mesh.faces()[f as usize];
+    let p = face.map(|v| mesh.position(v));
+    let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+    let a2 = norm(n);
+    if a2.is_nan() || a2 <= 0.0 {
+        return None;
+    }
+    let n = n.map(|c| c / a2);
+    let mut g = [0.0; 3];
+    for k in 0..3 {
+        let r = cross(n, sub(p[(k + 2) % 3], p[(k + 1) % 3]));
+        let fk = values[face[k] as usize];
+        for c in 0..3 {
+            g[c] += fk * r[c] / a2;
+        }
+    }
+    Some(g)
+}
+
+/// An orthonormal frame `(x, y)` of the plane of face `f`: `x` along its
+/// first edge, `y = n × x` with `n` the unit normal (so `(x, y, n)` is
+/// right-handed); `None` for a degenerate face.
+pub fn face_frame(mesh: &TriMesh, f: u32) -> Option<([f64; 3], [f64; 3])> {
+    let face = mesh.faces()[f as usize];
+    let p0 = mesh.position(face[0]);
+    let e = sub(mesh.position(face[1]), p0);
+    let n = cross(e, sub(mesh.position(face[2]), p0));
+    let (le, ln) = (norm(e), norm(n));
+    if le.is_nan() || ln.is_nan() || le <= 0.0 || ln <= 0.0 {
+        return None;
+    }
+    let x = e.map(|c| c / le);
+    Some((x, cross(n.map(|c| c / ln), x)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -262,32 +262,11 @@ fn descent(
     f: u32,
     tensors: Option<&[[f64; 6]]>,
 ) -> Option<[f64; 3]> {
-    let face = mesh.faces()[f as usize];
-    let p = face.map(|v| mesh.position(v));
-    let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-    let a2 = norm(n);
-    if a2.is_nan() || a2 <= 0.0 {
-        return None;
-    }
-    let n = [n[0] / a2, n[1] / a2, n[2] / a2];
-    let mut g = [0.0; 3];
-    for k in 0..3 {
-        let r = cross(n, sub(p[(k + 2) % 3], p[(k + 1) % 3]));
-        let dk = distance[face[k] as usize];
-        for c in 0..3 {
-            g[c] -= dk * r[c] / a2;
-        }
-    }
+    let mut g = super::face_gradient(mesh, f, distance)?.map(|c| -c);
     if let Some(t) = tensors {
         // Solve M₂ v₂ = g₂ in the orthonormal frame (x, y) of the face.
         let m = &t[f as usize];
-        let e = sub(p[1], p[0]);
-        let le = norm(e);
-        if le <= 0.0 {
-            return None;
-        }
-        let x = e.map(|c| c / le);
-        let y = cross(n, x);
+        let (x, y) = super::face_frame(mesh, f)?;
         let form = super::fast_marching::tensor_form;
         let (a, b, c) = (form(m, x, x), form(m, x, y), form(m, y, y));
         let det = a * c - b * b;
