@@ -546,3 +546,91 @@ fn mesh_curvature_writes_the_table_and_the_mesh() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("--smoothing"), "{err}");
 }
+
+/// `geodex distance-matrix --metric` and `--weights`: each row is what
+/// `geodex mesh-distance` writes from that source under the same metric,
+/// the metric changes the rows, and a method that cannot run it is one line
+/// naming the flag.
+#[test]
+fn distance_matrix_takes_the_metric_flags() {
+    let dir = TempDir::new().unwrap();
+    let (mesh_path, _) = sphere_obj(&dir);
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_geodex"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let metric = r#"{"kind": "curvature_tensors", "max_ratio": 4}"#;
+    let matrix = dir.path().join("m.npy");
+    let o = run(&[
+        "distance-matrix",
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "0",
+        "--source-vertex",
+        "7",
+        "--metric",
+        metric,
+        "--out",
+        s(&matrix),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m: ndarray::Array2<f64> = read_npy(&matrix).unwrap();
+    assert_eq!(m.shape()[0], 2);
+    // The source block is averaged (d(0, 7) and d(7, 0) may differ under
+    // tensors), so compare the rows off it.
+    let row = dir.path().join("d.npy");
+    for (i, v) in ["0", "7"].into_iter().enumerate() {
+        let o = run(&[
+            "mesh-distance",
+            "--mesh",
+            s(&mesh_path),
+            "--source-vertex",
+            v,
+            "--metric",
+            metric,
+            "--out",
+            s(&row),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let d: Array1<f64> = read_npy(&row).unwrap();
+        for (j, (a, b)) in m.row(i).iter().zip(&d).enumerate() {
+            if j != 0 && j != 7 {
+                assert_eq!(a, b, "row {i}, vertex {j}");
+            }
+        }
+    }
+    let plain = dir.path().join("p.npy");
+    let o = run(&[
+        "distance-matrix",
+        "--mesh",
+        s(&mesh_path),
+        "--source-vertex",
+        "0",
+        "--source-vertex",
+        "7",
+        "--out",
+        s(&plain),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p: ndarray::Array2<f64> = read_npy(&plain).unwrap();
+    assert!((&m - &p).iter().map(|x| x.abs()).fold(0.0, f64::max) > 1e-3);
+    let bad = run(&[
+        "distance-matrix",
+        "--mesh",
+        s(&mesh_path),
+        "--landmarks",
+        "3",
+        "--method",
+        "heat",
+        "--metric",
+        metric,
+        "--out",
+        s(&plain),
+    ]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("--metric"), "{err}");
+}

@@ -131,9 +131,9 @@ impl Inputs for One {
 }
 
 /// One mesh and the array files its request names (ids are paths).
-struct WithFiles(
-    Arc<MeshInput>,
-    std::collections::HashMap<String, InputArray>,
+pub(crate) struct WithFiles(
+    pub(crate) Arc<MeshInput>,
+    pub(crate) std::collections::HashMap<String, InputArray>,
 );
 
 impl LoadInputs for WithFiles {
@@ -224,6 +224,7 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
     if sources.is_empty() {
         return Err("give at least one --source-vertex or --source-face".into());
     }
+    let metric = MetricFiles::read(args.weights.as_deref(), args.metric.as_deref())?;
     let request = MeshDistanceRequest {
         mesh: "file".into(),
         sources,
@@ -234,38 +235,11 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
             MeshMethodArg::Dijkstra => MeshMethodSpec::Dijkstra,
         },
         max_distance: args.max_distance,
-        weights: args.weights.as_ref().map(|p| p.display().to_string()),
-        metric: match &args.metric {
-            Some(json) => Some(
-                serde_json::from_str::<SurfaceMetricSpec>(json)
-                    .map_err(|e| format!("--metric: not a metric section: {e}"))?,
-            ),
-            None => None,
-        },
+        weights: metric.weights,
+        metric: metric.metric,
         heat: args.laplacian.heat(args.heat_m),
     };
-    let mut files = std::collections::HashMap::new();
-    let named = request
-        .weights
-        .iter()
-        .map(|w| ("--weights", w.clone()))
-        .chain(
-            request
-                .metric
-                .iter()
-                .flat_map(|m| m.dataset_ids())
-                .map(|(_, id)| ("--metric", id)),
-        );
-    for (flag, path) in named {
-        let d = super::distance::read_array(flag, Path::new(&path)).map_err(|e| e.to_string())?;
-        files.insert(
-            path,
-            InputArray {
-                array: Arc::new(d.array),
-                spacing: d.spacing,
-            },
-        );
-    }
+    let files = metric.files;
     let vertices = args.source_vertices.len();
     let flags = FlagMap::new()
         .each_in("sources", "--source-vertex", 0..vertices)
@@ -305,6 +279,52 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         solve - factor
     );
     Ok(())
+}
+
+/// `--weights` and `--metric` of a mesh command: the request's `weights`
+/// and `metric` fields (dataset ids are the file paths) and the arrays read
+/// from those files, by path.
+pub(super) struct MetricFiles {
+    pub weights: Option<String>,
+    pub metric: Option<SurfaceMetricSpec>,
+    pub files: std::collections::HashMap<String, InputArray>,
+}
+
+impl MetricFiles {
+    /// Parses `--metric` and reads every file it and `--weights` name;
+    /// errors name the flag.
+    pub fn read(weights: Option<&Path>, metric: Option<&str>) -> Result<Self, String> {
+        let weights = weights.map(|p| p.display().to_string());
+        let metric = metric
+            .map(|json| {
+                serde_json::from_str::<SurfaceMetricSpec>(json)
+                    .map_err(|e| format!("--metric: not a metric section: {e}"))
+            })
+            .transpose()?;
+        let mut files = std::collections::HashMap::new();
+        let named = weights.iter().map(|w| ("--weights", w.clone())).chain(
+            metric
+                .iter()
+                .flat_map(|m| m.dataset_ids())
+                .map(|(_, id)| ("--metric", id)),
+        );
+        for (flag, path) in named {
+            let d =
+                super::distance::read_array(flag, Path::new(&path)).map_err(|e| e.to_string())?;
+            files.insert(
+                path,
+                InputArray {
+                    array: Arc::new(d.array),
+                    spacing: d.spacing,
+                },
+            );
+        }
+        Ok(Self {
+            weights,
+            metric,
+            files,
+        })
+    }
 }
 
 /// Flags of `geodex mesh-curvature`.

@@ -19,7 +19,9 @@ use std::sync::Arc;
 
 use clap::Args;
 
-use super::mesh_distance::{load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, One};
+use super::mesh_distance::{
+    load_mesh_file, write_npy, LaplacianArg, MeshMethodArg, MetricFiles, One, WithFiles,
+};
 use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write::encode_by_extension;
 use crate::io::mesh::write::VertexProperty;
@@ -56,6 +58,14 @@ pub struct DistanceMatrixArgs {
     /// Heat method Laplacian.
     #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
     pub laplacian: LaplacianArg,
+    /// A file with one weight W > 0 per vertex: W-weighted rows
+    /// (fast_marching or dijkstra).
+    #[arg(long, value_name = "W.npy")]
+    pub weights: Option<PathBuf>,
+    /// The request's `metric` section as JSON, as for `geodex mesh-distance`
+    /// (dataset ids in it are file paths).
+    #[arg(long, value_name = "JSON")]
+    pub metric: Option<String>,
     /// Take the smaller of d(i, j) and d(j, i) instead of their average.
     #[arg(long)]
     pub min: bool,
@@ -136,21 +146,28 @@ fn method(m: MeshMethodArg) -> MeshMethodSpec {
 /// Runs `request` on the mesh file; a refused field is named as its flag.
 fn run_on_mesh(request: Box<dyn DynOperation>, mesh: &std::path::Path) -> Result<OpOutput, String> {
     let input = load_mesh_file(mesh)?;
-    let flags = FlagMap::new()
+    run_operation(request, One(Arc::new(input)), &mesh_flags()).map_err(|e| e.to_string())
+}
+
+/// The request fields of these commands and the flags that set them.
+fn mesh_flags() -> FlagMap {
+    FlagMap::new()
         .field("sources", "--source-vertex")
         .field("heat", "--heat-m")
         .field("landmarks", "--landmarks")
-        .field("bins", "--bins");
-    run_operation(request, One(Arc::new(input)), &flags).map_err(|e| e.to_string())
+        .field("bins", "--bins")
 }
 
 /// Runs `geodex distance-matrix`.
 pub fn run_distance_matrix(args: &DistanceMatrixArgs) -> Result<(), String> {
+    let metric = MetricFiles::read(args.weights.as_deref(), args.metric.as_deref())?;
     let request = MeshDistanceMatrixRequest {
         mesh: "file".into(),
         landmarks: args.landmarks,
         sources: (!args.sources.is_empty()).then(|| args.sources.clone()),
         method: method(args.method),
+        weights: metric.weights,
+        metric: metric.metric,
         symmetry: if args.min {
             SymmetrySpec::Min
         } else {
@@ -158,7 +175,12 @@ pub fn run_distance_matrix(args: &DistanceMatrixArgs) -> Result<(), String> {
         },
         heat: args.laplacian.heat(args.heat_m),
     };
-    let output = run_on_mesh(Box::new(request), &args.mesh)?;
+    let input = load_mesh_file(&args.mesh)?;
+    let flags = mesh_flags()
+        .field("weights", "--weights")
+        .field("metric", "--metric");
+    let inputs = WithFiles(Arc::new(input), metric.files);
+    let output = run_operation(Box::new(request), inputs, &flags).map_err(|e| e.to_string())?;
     let matrix = output
         .array("matrix")
         .ok_or("the operation returned no matrix")?;

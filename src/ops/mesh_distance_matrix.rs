@@ -9,12 +9,16 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::spec::mesh::{get_mesh, heat_solver, HeatInfo, HeatSpec, MeshMethodSpec};
+use super::spec::mesh_metric::{
+    mesh_dataset_ids, resolve_metric, validate_metric, SurfaceMetricSpec,
+};
 use super::spec::shape::{
     check_size, matrix_output, shape_error, SymmetrySpec, MAX_MATRIX_ENTRIES,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
+use crate::numerics::mesh::fast_marching::Metric;
 use crate::numerics::mesh::MeshMethod;
-use crate::numerics::shape::matrix::{distance_rows, landmarks};
+use crate::numerics::shape::matrix::{distance_rows_in, landmarks};
 use crate::numerics::Control;
 
 /// Request of `mesh.distance_matrix` (`POST /v1/mesh/distance-matrix`,
@@ -37,6 +41,16 @@ pub struct MeshDistanceMatrixRequest {
     /// The method. Default: `fast_marching`.
     #[serde(default)]
     pub method: MeshMethodSpec,
+    /// Id of an array dataset with one weight `W > 0` per vertex: the rows
+    /// are `W`-weighted distances (`fast_marching` or `dijkstra`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weights: Option<String>,
+    /// A metric designed on the surface (curvature, a field; `fast_marching`
+    /// or `dijkstra`) or anisotropic (face tensors; `fast_marching`), as on
+    /// `mesh.distance`, instead of `weights`. Landmarks are still spread by
+    /// the surface's own geodesic distance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metric: Option<SurfaceMetricSpec>,
     /// How the source block is made symmetric. Default: `average`.
     #[serde(default)]
     pub symmetry: SymmetrySpec,
@@ -76,11 +90,23 @@ impl Operation for MeshDistanceMatrixRequest {
         if !(self.heat.m.is_finite() && self.heat.m > 0.0) {
             return Err(OpError::invalid("heat.m", "must be finite and > 0"));
         }
+        validate_metric(self.weights.as_deref(), self.metric.as_ref(), self.method)?;
+        if self.weights.is_some()
+            && !matches!(
+                self.method,
+                MeshMethodSpec::FastMarching | MeshMethodSpec::Dijkstra
+            )
+        {
+            return Err(OpError::invalid(
+                "weights",
+                "weighted rows run with `method: fast_marching` or `dijkstra`",
+            ));
+        }
         Ok(())
     }
 
     fn dataset_ids(&self) -> Vec<(String, String)> {
-        vec![("mesh".to_string(), self.mesh.clone())]
+        mesh_dataset_ids(&self.mesh, self.weights.as_deref(), self.metric.as_ref())
     }
 
     fn run(
@@ -131,11 +157,23 @@ impl Operation for MeshDistanceMatrixRequest {
         } else {
             (None, None)
         };
-        let r = distance_rows(
+        let resolved = resolve_metric(
+            inputs,
+            &input,
+            self.weights.as_deref(),
+            self.metric.as_ref(),
+            control,
+        )?;
+        let metric = match &resolved.tensors {
+            Some(t) => Metric::Faces(t),
+            None => Metric::Weights(resolved.weights.as_deref()),
+        };
+        let r = distance_rows_in(
             mesh,
             topo,
             &sources,
             method,
+            metric,
             heat.as_deref(),
             self.symmetry.into(),
             control,
@@ -153,6 +191,9 @@ impl Operation for MeshDistanceMatrixRequest {
             "all_pairs": all_pairs,
             // Row i is the distance from vertex sources[i] (every vertex in order for all pairs).
             "sources": if all_pairs { None } else { Some(&sources) },
+            // The metric the rows were solved under, as requested.
+            "weights": self.weights,
+            "metric": self.metric,
             "asymmetry": r.asymmetry,
             "heat": info,
             "stats": {

@@ -274,6 +274,8 @@ def every_operation(run: Run) -> None:
     run.post("mesh", "remesh", "MeshRemeshRequest", {"mesh": mesh, "count": 120})
     run.post("mesh", "distance_matrix", "MeshDistanceMatrixRequest",
              {"mesh": mesh, "landmarks": 4, "method": "heat"})
+    run.post("mesh", "distance_matrix", "MeshDistanceMatrixRequest",
+             {"mesh": mesh, "sources": [0, 5], "metric": {"kind": "curvature_tensors", "max_ratio": 4}})
     run.post("mesh", "embed", "MeshEmbedRequest", {"mesh": mesh, "landmarks": 40})
     run.post("mesh", "descriptor", "MeshDescriptorRequest", {"mesh": mesh, "landmarks": 16, "bins": 8})
 

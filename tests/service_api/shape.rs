@@ -274,3 +274,99 @@ async fn shape_embed_of_a_mask_and_its_refusals() {
     .await;
     assert_eq!(p["field"], "order", "{p}");
 }
+
+/// The distance matrix under a metric: each row is `mesh.distance` from
+/// that source under the same metric (a field design, and face tensors),
+/// the metric is echoed with its defaults, and a method that cannot run it gets a 422 naming
+/// the field.
+#[tokio::test]
+async fn distance_matrix_under_a_metric_matches_mesh_distance() {
+    let app = spawn(|_| {}).await;
+    let sphere = icosphere(2, 1.0);
+    let id = upload_mesh(&app, &sphere).await;
+    let height: Vec<f64> = sphere.positions().iter().map(|p| p[2]).collect();
+    let nv = height.len();
+    let field = app
+        .upload(&ArrayData::F64(
+            ndarray::ArrayD::from_shape_vec(vec![1, nv], height).expect("shape"),
+        ))
+        .await;
+    let sources = [0u32, 40, 99];
+    for metric in [
+        json!({"kind": "field", "field": field, "mode": "value", "reference": 0.5}),
+        json!({"kind": "tensors", "constant": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 9.0]]}),
+    ] {
+        let res = post(
+            &app,
+            "/v1/mesh/distance-matrix",
+            json!({"mesh": id, "sources": sources, "metric": metric, "symmetry": "none"}),
+        )
+        .await;
+        assert_eq!(res.status(), 200, "{:?}", res.text().await);
+        let body: serde_json::Value = res.json().await.expect("json");
+        // Echoed with its defaults filled in.
+        assert_eq!(body["metric"]["kind"], metric["kind"], "{body}");
+        let ArrayData::F64(m) = npy(&app, &body["matrix"]["data_url"]).await else {
+            panic!("f64 matrix");
+        };
+        let m = m.into_dimensionality::<ndarray::Ix2>().expect("a matrix");
+        let plain = post(
+            &app,
+            "/v1/mesh/distance-matrix",
+            json!({"mesh": id, "sources": sources, "symmetry": "none"}),
+        )
+        .await;
+        let plain: serde_json::Value = plain.json().await.expect("json");
+        let ArrayData::F64(p) = npy(&app, &plain["matrix"]["data_url"]).await else {
+            panic!("f64 matrix");
+        };
+        let p = p.into_dimensionality::<ndarray::Ix2>().expect("a matrix");
+        assert!(
+            (&m - &p).iter().map(|d| d.abs()).fold(0.0, f64::max) > 0.05,
+            "the metric changed nothing: {metric}"
+        );
+        for (i, &s) in sources.iter().enumerate() {
+            let res = post(
+                &app,
+                "/v1/mesh/distance",
+                json!({"mesh": id, "sources": [{"vertex": s}], "metric": metric}),
+            )
+            .await;
+            assert_eq!(res.status(), 200, "{:?}", res.text().await);
+            let one: serde_json::Value = res.json().await.expect("json");
+            let url = one["result"]["data_url"].as_str().expect("data_url");
+            let j: serde_json::Value = app
+                .get(&format!("{url}?format=json"))
+                .await
+                .json()
+                .await
+                .expect("json mesh");
+            let d: Vec<f64> = j["properties"]["distance"]
+                .as_array()
+                .expect("distance")
+                .iter()
+                .map(|x| x.as_f64().unwrap_or(f64::INFINITY))
+                .collect();
+            assert_eq!(m.row(i).to_vec(), d, "{metric} source {s}");
+        }
+    }
+    for (body, field) in [
+        (
+            json!({"mesh": id, "landmarks": 4, "method": "heat",
+                   "metric": {"kind": "curvature"}}),
+            "metric",
+        ),
+        (
+            json!({"mesh": id, "landmarks": 4, "method": "exact", "weights": field}),
+            "weights",
+        ),
+        (
+            json!({"mesh": id, "landmarks": 4, "method": "dijkstra",
+                   "metric": {"kind": "curvature_tensors"}}),
+            "metric",
+        ),
+    ] {
+        let p = problem(post(&app, "/v1/mesh/distance-matrix", body).await, 422).await;
+        assert_eq!(p["field"], field, "{p}");
+    }
+}

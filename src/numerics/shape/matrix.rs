@@ -34,9 +34,11 @@ use rayon::prelude::*;
 use super::graph::{par_rows, Graph};
 use super::ShapeError;
 use crate::numerics::mesh::exact::exact_distance;
-use crate::numerics::mesh::fast_marching::{march, MarchPrep};
+use crate::numerics::mesh::fast_marching::{
+    check_tensors, march, march_metric, MarchPrep, MarchWork, Metric,
+};
 use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
-use crate::numerics::mesh::sources::{seeds, VertexGraph};
+use crate::numerics::mesh::sources::{check_weights, seeds, tensor_seeds, VertexGraph};
 use crate::numerics::mesh::{
     norm, sub, HeatOptions, HeatSolver, MeshDistance, MeshMethod, SurfacePoint, Topology, TriMesh,
 };
@@ -79,7 +81,60 @@ pub fn distance_rows(
     symmetry: Symmetry,
     control: &Control<'_>,
 ) -> Result<DistanceRows, ShapeError> {
+    distance_rows_in(
+        mesh,
+        topo,
+        sources,
+        method,
+        Metric::Weights(None),
+        heat,
+        symmetry,
+        control,
+    )
+}
+
+/// [`distance_rows`] under a metric on the surface: per-vertex weights `W`
+/// (fast marching, whose rows are the solves of
+/// [`crate::numerics::mesh::mesh_distance`] with those weights, and
+/// Dijkstra, with the edge length `½(W_u + W_v)|uv|`) or one tensor per
+/// face (fast marching only, as
+/// [`crate::numerics::mesh::fast_marching::fast_marching_distance`]). The
+/// setup (the march's corner data, unfolded in the metric for tensors) is
+/// shared by every row. Any metric but `W = 1` with the heat or exact
+/// method is refused, naming `metric`. Under a tensor metric the distance
+/// need not be symmetric: `asymmetry` says by how much the source block
+/// was not.
+#[allow(clippy::too_many_arguments)]
+pub fn distance_rows_in(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[u32],
+    method: MeshMethod,
+    metric: Metric<'_>,
+    heat: Option<&HeatSolver>,
+    symmetry: Symmetry,
+    control: &Control<'_>,
+) -> Result<DistanceRows, ShapeError> {
     let n = mesh.num_vertices();
+    let solve = ShapeError::from_solve;
+    let plain = matches!(metric, Metric::Weights(None));
+    let supported = match metric {
+        Metric::Weights(_) => matches!(method, MeshMethod::FastMarching | MeshMethod::Dijkstra),
+        Metric::Faces(_) => method == MeshMethod::FastMarching,
+    };
+    if !plain && !supported {
+        return Err(ShapeError::InvalidOption {
+            option: "metric",
+            reason: format!(
+                "the method {method:?} runs with W = 1 only; weights run with fast marching or \
+                 Dijkstra, face tensors with fast marching"
+            ),
+        });
+    }
+    match metric {
+        Metric::Weights(w) => check_weights(mesh, w).map_err(solve)?,
+        Metric::Faces(t) => check_tensors(mesh, t).map_err(solve)?,
+    }
     if sources.is_empty() {
         return Err(ShapeError::InvalidOption {
             option: "sources",
@@ -94,17 +149,38 @@ pub fn distance_rows(
     }
     let inner = control.cancel_only();
     let copy = |d: MeshDistance, row: &mut [f64]| row.copy_from_slice(&d.distance);
-    let solve = ShapeError::from_solve;
     let mut rows = match method {
         MeshMethod::FastMarching => {
-            let prep = MarchPrep::new(mesh, topo);
+            let prep = match metric {
+                Metric::Faces(t) => MarchPrep::with_tensors(mesh, topo, t),
+                Metric::Weights(_) => MarchPrep::new(mesh, topo),
+            };
             par_rows(sources, n, control, |s, row| {
-                let seeds = seeds(mesh, &[SurfacePoint::Vertex(s)], None).map_err(solve)?;
+                let source = [SurfacePoint::Vertex(s)];
                 let mut out = MeshDistance {
                     distance: vec![f64::INFINITY; n],
                     labels: vec![-1; n],
                 };
-                march(mesh, &prep, &seeds, None, f64::INFINITY, &mut out, &inner).map_err(solve)?;
+                match metric {
+                    Metric::Weights(w) => {
+                        let seeds = seeds(mesh, &source, w).map_err(solve)?;
+                        march(mesh, &prep, &seeds, w, f64::INFINITY, &mut out, &inner)
+                    }
+                    Metric::Faces(t) => {
+                        let seeds = tensor_seeds(mesh, &source, t).map_err(solve)?;
+                        march_metric(
+                            &mut MarchWork::new(n),
+                            mesh,
+                            &prep,
+                            &seeds,
+                            metric,
+                            f64::INFINITY,
+                            &mut out,
+                            &inner,
+                        )
+                    }
+                }
+                .map_err(solve)?;
                 copy(out, row);
                 Ok(())
             })?
@@ -134,7 +210,10 @@ pub fn distance_rows(
             Ok(())
         })?,
         MeshMethod::Dijkstra => {
-            let graph = edge_graph(mesh);
+            let graph = match metric {
+                Metric::Weights(w) => weighted_edge_graph(mesh, w),
+                Metric::Faces(_) => edge_graph(mesh),
+            };
             par_rows(sources, n, control, |s, row| {
                 graph.dijkstra_into(s, row, &inner)
             })?
@@ -187,13 +266,26 @@ fn heat_rows(
 
 /// The edge graph of a mesh with Euclidean edge lengths.
 pub fn edge_graph(mesh: &TriMesh) -> Graph {
+    weighted_edge_graph(mesh, None)
+}
+
+/// The edge graph of a mesh under per-vertex weights (`None`: 1): edge
+/// `uv` has the length `½(W_u + W_v)|uv|`, as
+/// [`crate::numerics::mesh::dijkstra`] reads it.
+fn weighted_edge_graph(mesh: &TriMesh, w: Option<&[f64]>) -> Graph {
     let vg = VertexGraph::new(mesh);
     let n = mesh.num_vertices();
+    let weight = |v: u32| w.map_or(1.0, |w| w[v as usize]);
     let mut edges = Vec::with_capacity(vg.neighbours.len() / 2);
     for v in 0..n as u32 {
         for &u in vg.of(v) {
             if u > v {
-                edges.push((v, u, norm(sub(mesh.position(u), mesh.position(v)))));
+                let length = norm(sub(mesh.position(u), mesh.position(v)));
+                let length = match w {
+                    Some(_) => 0.5 * (weight(v) + weight(u)) * length,
+                    None => length,
+                };
+                edges.push((v, u, length));
             }
         }
     }
@@ -281,6 +373,100 @@ mod tests {
         MeshMethod::Exact,
         MeshMethod::Dijkstra,
     ];
+
+    /// Under weights (fast marching, Dijkstra) and face tensors (fast
+    /// marching), each row is the single-source solve under the same metric,
+    /// to the bit; the heat and exact methods refuse a metric by name.
+    #[test]
+    fn rows_under_a_metric_are_the_single_source_solves_under_it() {
+        let mesh = icosphere(2, 1.0);
+        let topo = Topology::new(&mesh);
+        let n = mesh.num_vertices();
+        let w: Vec<f64> = (0..n)
+            .map(|v| 1.0 + 0.8 * (mesh.position(v as u32)[2] * 3.0).sin().abs())
+            .collect();
+        // A tensor per face: lengths along z twice those across (on each
+        // face's plane, where it is positive definite).
+        let t: Vec<[f64; 6]> = vec![[1.0, 0.0, 0.0, 1.0, 0.0, 4.0]; mesh.num_faces()];
+        let sources = [0u32, 17, 101];
+        let cases = [
+            (MeshMethod::FastMarching, Metric::Weights(Some(&w))),
+            (MeshMethod::Dijkstra, Metric::Weights(Some(&w))),
+            (MeshMethod::FastMarching, Metric::Faces(&t)),
+        ];
+        for (method, metric) in cases {
+            let (weights, tensors) = match metric {
+                Metric::Weights(w) => (w, None),
+                Metric::Faces(t) => (None, Some(t)),
+            };
+            let r = distance_rows_in(
+                &mesh,
+                &topo,
+                &sources,
+                method,
+                metric,
+                None,
+                Symmetry::None,
+                &Control::new(),
+            )
+            .unwrap();
+            let plain = distance_rows(
+                &mesh,
+                &topo,
+                &sources,
+                method,
+                None,
+                Symmetry::None,
+                &Control::new(),
+            )
+            .unwrap();
+            assert_ne!(r.rows, plain.rows, "{method:?}: the metric changed nothing");
+            for (i, &s) in sources.iter().enumerate() {
+                let one = mesh_distance(
+                    &mesh,
+                    &topo,
+                    &[SurfacePoint::Vertex(s)],
+                    &MeshDistanceOptions {
+                        method,
+                        weights,
+                        tensors,
+                        ..Default::default()
+                    },
+                    None,
+                    &Control::new(),
+                )
+                .unwrap();
+                assert_eq!(
+                    r.rows.row(i).to_vec(),
+                    one.distance,
+                    "{method:?} source {s}"
+                );
+            }
+        }
+        for method in [MeshMethod::Heat, MeshMethod::Exact] {
+            let e = distance_rows_in(
+                &mesh,
+                &topo,
+                &sources,
+                method,
+                Metric::Weights(Some(&w)),
+                None,
+                Symmetry::None,
+                &Control::new(),
+            )
+            .unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    ShapeError::InvalidOption {
+                        option: "metric",
+                        ..
+                    }
+                ),
+                "{method:?}: {e}"
+            );
+        }
+    }
 
     #[test]
     fn rows_are_the_single_source_solvers_rows() {
