@@ -16,7 +16,6 @@ use super::spec::shape::{
     check_size, matrix_output, shape_error, SymmetrySpec, MAX_MATRIX_ENTRIES,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
-use crate::numerics::mesh::fast_marching::Metric;
 use crate::numerics::mesh::MeshMethod;
 use crate::numerics::shape::matrix::{distance_rows_in, landmarks};
 use crate::numerics::Control;
@@ -164,16 +163,12 @@ impl Operation for MeshDistanceMatrixRequest {
             self.metric.as_ref(),
             control,
         )?;
-        let metric = match &resolved.tensors {
-            Some(t) => Metric::Faces(t),
-            None => Metric::Weights(resolved.weights.as_deref()),
-        };
         let r = distance_rows_in(
             mesh,
             topo,
             &sources,
             method,
-            metric,
+            resolved.metric(),
             heat.as_deref(),
             self.symmetry.into(),
             control,

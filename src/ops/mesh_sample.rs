@@ -13,7 +13,6 @@ use super::spec::mesh_metric::{
     mesh_dataset_ids, resolve_metric, validate_metric, SurfaceMetricSpec,
 };
 use super::{Inputs, OpError, OpLimits, OpOutput, Operation};
-use crate::numerics::mesh::fast_marching::Metric;
 use crate::numerics::mesh::sampling::{farthest_point_sampling_in, SamplingOptions};
 use crate::numerics::mesh::MeshMethod;
 use crate::numerics::Control;
@@ -134,10 +133,6 @@ impl Operation for MeshSampleRequest {
             self.metric.as_ref(),
             control,
         )?;
-        let metric = match &resolved.tensors {
-            Some(t) => Metric::Faces(t),
-            None => Metric::Weights(resolved.weights.as_deref()),
-        };
         let s = farthest_point_sampling_in(
             &input.mesh,
             &input.topology,
@@ -147,7 +142,7 @@ impl Operation for MeshSampleRequest {
                 first: self.first,
                 method,
             },
-            metric,
+            resolved.metric(),
             heat.as_deref(),
             control,
         )

@@ -278,9 +278,16 @@ fn adjoint_step(march: &Replay<'_>, x: usize, acc: &mut [[f64; 2]]) -> Result<()
         }
         return Ok(());
     }
-    let Some(row) = march.row(x)? else {
-        return Ok(());
-    };
+    if let Some(row) = march.row(x)? {
+        apply_row(acc, x, lam, &row);
+    }
+    Ok(())
+}
+
+/// `λ_x` through the row of `x`: `∂J/∂W` of `x` (and of the neighbour a
+/// binding cap reads) and `λ` of the cells its update read.
+#[inline]
+fn apply_row(acc: &mut [[f64; 2]], x: usize, lam: f64, row: &Row) {
     acc[x][1] += lam * row.dw;
     if let Some((j, d)) = row.dw_neighbour {
         acc[j][1] += lam * d;
@@ -288,7 +295,6 @@ fn adjoint_step(march: &Replay<'_>, x: usize, acc: &mut [[f64; 2]]) -> Result<()
     for &(j, d) in row.du() {
         acc[j][0] += lam * d;
     }
-    Ok(())
 }
 
 /// [`adjoint_step`] for order 1 with one label, without rebuilding the
@@ -333,18 +339,15 @@ fn first_order_step(
         } else {
             f64::INFINITY
         };
-        let (a, j) = if lo <= hi {
-            (lo, x - step)
-        } else {
-            (hi, x + step)
-        };
-        let d = ux - a;
+        let lower = lo <= hi;
+        let d = ux - if lower { lo } else { hi };
+        // `d > 0` only for a finite upwind value, so that side exists.
         if d > 0.0 {
             let h = st.h[k];
             let cd = d / (h * h);
             s += cd;
             r += cd * d;
-            reads[slot] = (j, cd);
+            reads[slot] = (if lower { x - step } else { x + step }, cd);
         }
     }
     let w = march.problem.cost.at(x);
@@ -455,13 +458,7 @@ fn second_order_step(
         Some((v, row)) if (v - ux).abs() <= 1e-9 * ux.abs().max(1.0) => row,
         _ => return adjoint_step(march, x, acc),
     };
-    acc[x][1] += lam * row.dw;
-    if let Some((j, d)) = row.dw_neighbour {
-        acc[j][1] += lam * d;
-    }
-    for &(j, d) in row.du() {
-        acc[j][0] += lam * d;
-    }
+    apply_row(acc, x, lam, &row);
     Ok(())
 }
 

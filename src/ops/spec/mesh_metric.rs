@@ -14,7 +14,7 @@ use utoipa::ToSchema;
 use super::mesh::{read_weights, MeshInput, MeshMethodSpec};
 use crate::numerics::mesh::curvature::face_tensors_from_curvature;
 use crate::numerics::mesh::design::{design, CurvatureFeature, FieldMode, MeshDesign};
-use crate::numerics::mesh::fast_marching::check_tensors;
+use crate::numerics::mesh::fast_marching::{check_tensors, Metric};
 use crate::numerics::mesh::MeshSolveError;
 use crate::numerics::Control;
 use crate::ops::{Inputs, OpError};
@@ -152,6 +152,16 @@ pub(crate) struct ResolvedMeshMetric {
     pub weights: Option<Vec<f64>>,
     /// Per-face tensors.
     pub tensors: Option<Vec<[f64; 6]>>,
+}
+
+impl ResolvedMeshMetric {
+    /// As the march's [`Metric`]: the tensors if any, else the weights.
+    pub fn metric(&self) -> Metric<'_> {
+        match &self.tensors {
+            Some(t) => Metric::Faces(t),
+            None => Metric::Weights(self.weights.as_deref()),
+        }
+    }
 }
 
 impl SurfaceMetricSpec {
