@@ -562,22 +562,26 @@ fn distance_matrix_takes_the_metric_flags() {
             .unwrap()
     };
     let metric = r#"{"kind": "curvature_tensors", "max_ratio": 4}"#;
-    let matrix = dir.path().join("m.npy");
-    let o = run(&[
-        "distance-matrix",
-        "--mesh",
-        s(&mesh_path),
-        "--source-vertex",
-        "0",
-        "--source-vertex",
-        "7",
-        "--metric",
-        metric,
-        "--out",
-        s(&matrix),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let m: ndarray::Array2<f64> = read_npy(&matrix).unwrap();
+    // The rows from vertices 0 and 7, with `extra` flags.
+    let rows = |extra: &[&str], name: &str| -> ndarray::Array2<f64> {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "distance-matrix",
+            "--mesh",
+            s(&mesh_path),
+            "--source-vertex",
+            "0",
+            "--source-vertex",
+            "7",
+            "--out",
+            s(&out),
+        ];
+        args.extend(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        read_npy(&out).unwrap()
+    };
+    let m = rows(&["--metric", metric], "m.npy");
     assert_eq!(m.shape()[0], 2);
     // The source block is averaged (d(0, 7) and d(7, 0) may differ under
     // tensors), so compare the rows off it.
@@ -602,21 +606,9 @@ fn distance_matrix_takes_the_metric_flags() {
             }
         }
     }
-    let plain = dir.path().join("p.npy");
-    let o = run(&[
-        "distance-matrix",
-        "--mesh",
-        s(&mesh_path),
-        "--source-vertex",
-        "0",
-        "--source-vertex",
-        "7",
-        "--out",
-        s(&plain),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let p: ndarray::Array2<f64> = read_npy(&plain).unwrap();
+    let p = rows(&[], "p.npy");
     assert!((&m - &p).iter().map(|x| x.abs()).fold(0.0, f64::max) > 1e-3);
+    let plain = dir.path().join("p.npy");
     let bad = run(&[
         "distance-matrix",
         "--mesh",
