@@ -20,7 +20,7 @@ Printed per order (1, 2):
   relative L1 gap between the two gradients; and U at the targets on a unit
   cost against the Euclidean distance (the forward accuracy of each scheme).
 
-Usage (the venv needs numpy and agd; HFM's FileHFM_Isotropic2 built from
+Usage (the venv needs numpy, scipy and agd: agd 0.2.16 imports scipy without declaring it; HFM's FileHFM_Isotropic2 built from
 its sources, see tests/bench/README.md):
     python3 tests/bench/compare_agd_gradient.py --geodex target/release/geodex \
         --hfm-dir /tmp/hfm --n 1024 --targets 1000 --repeat 3
