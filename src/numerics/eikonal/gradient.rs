@@ -297,6 +297,26 @@ fn apply_row(acc: &mut [[f64; 2]], x: usize, lam: f64, row: &Row) {
     }
 }
 
+/// The common start of the specialised steps: `Some(λ_x)` for a cell they
+/// take; `None` when there is nothing to carry (`λ_x = 0`) or when `x` is a
+/// seed, which [`adjoint_step`] has then handled.
+#[inline]
+fn ordinary_cell(
+    march: &Replay<'_>,
+    x: usize,
+    acc: &mut [[f64; 2]],
+) -> Result<Option<f64>, EikonalError> {
+    let lam = acc[x][0];
+    if lam == 0.0 {
+        return Ok(None);
+    }
+    if march.seed(x).is_some() {
+        adjoint_step(march, x, acc)?;
+        return Ok(None);
+    }
+    Ok(Some(lam))
+}
+
 /// [`adjoint_step`] for order 1 with one label, without rebuilding the
 /// update: order 1 freezes in non-decreasing `U`, so the axis `k`'s upwind
 /// value is the smaller of its two neighbours (the lower one on a tie), it
@@ -314,13 +334,9 @@ fn first_order_step(
     x: usize,
     acc: &mut [[f64; 2]],
 ) -> Result<(), EikonalError> {
-    let lam = acc[x][0];
-    if lam == 0.0 {
+    let Some(lam) = ordinary_cell(march, x, acc)? else {
         return Ok(());
-    }
-    if march.seed(x).is_some() {
-        return adjoint_step(march, x, acc);
-    }
+    };
     let st = &march.st;
     let u = &march.u;
     let ux = u[x];
@@ -378,16 +394,12 @@ fn second_order_step(
     x: usize,
     acc: &mut [[f64; 2]],
 ) -> Result<(), EikonalError> {
-    let lam = acc[x][0];
-    if lam == 0.0 {
-        return Ok(());
-    }
     let Some(ranks) = march.ranks.as_deref() else {
         return adjoint_step(march, x, acc);
     };
-    if march.seed(x).is_some() {
-        return adjoint_step(march, x, acc);
-    }
+    let Some(lam) = ordinary_cell(march, x, acc)? else {
+        return Ok(());
+    };
     let st = &march.st;
     let u = &march.u;
     let ux = u[x];
