@@ -23,7 +23,8 @@
 //!    (even-odd rule: holes need no orientation).
 //! 3. **Inside.** With a uniform size, the hexagonal lattice of side `h₀`
 //!    (each vertex at distance `h₀` from six others, the optimal packing),
-//!    kept where it is inside and at least `h₀/2` from the boundary. Then,
+//!    kept where it is inside (even-odd count of the boundary crossings of
+//!    its row) and at least `h₀/2` from the boundary. Then,
 //!    and alone under a metric, passes of Chew-style insertion: each inside triangle whose
 //!    circumradius `R` exceeds `β h` (`β = 0.7`; an equilateral triangle of
 //!    side `h` has `R = h/√3 ≈ 0.58 h`) proposes its circumcenter, unless
@@ -33,14 +34,19 @@
 //!    Xu): each inner vertex moves to the density-weighted mean of the
 //!    circumcenters of its triangles, `x ← Σ_T ρ_T |T| c_T / Σ_T ρ_T |T|`
 //!    with `ρ = h⁻²`, which minimises the interpolation error of `|x|²`
-//!    (the centroidal Voronoi energy's Delaunay counterpart); the
-//!    triangulation is rebuilt after each sweep. A move that would leave
-//!    the domain is not made.
+//!    (the centroidal Voronoi energy's Delaunay counterpart). Many moves
+//!    rebuild the triangulation, a few (the band along the boundary) remove
+//!    and reinsert their vertices; a lattice vertex amid lattice vertices is
+//!    its own target and is not looked at. A move that would leave the
+//!    domain is not made.
 //! 5. **Quality.** Ruppert's Delaunay refinement (`spade`'s `refine`) to
 //!    the angle bound (25° by default): triangles with a smaller angle get
 //!    their circumcenter inserted, boundary edges they encroach are split
 //!    at their midpoint (which stays on the boundary). The vertices it adds
-//!    are counted in [`DomainMesh::refined`].
+//!    are counted in [`DomainMesh::refined`]. It is not run when it would
+//!    change nothing: no inside triangle below the bound and no boundary
+//!    edge encroached (checked first, with a margin; the usual case after
+//!    relaxation).
 //!
 //! Angles below the bound remain only at input corners sharper than it
 //! (no refinement can open them).
@@ -580,22 +586,27 @@ fn mesh_once(
             estimate: boundary.len(),
         });
     }
-    let mut cdt = build(&boundary, &edges, &origin)?;
+    let boundary_cdt = build(&boundary, &edges, &origin)?;
     let oracle = Oracle {
-        inside: classify(&cdt),
-        cdt: cdt.clone(),
+        inside: classify(&boundary_cdt),
+        cdt: boundary_cdt,
         nb: boundary.len(),
     };
     let mut interior: Vec<[f64; 2]> = Vec::new();
-    if matches!(field, SizeField::Uniform) {
+    // The number of lattice points (they come first in `interior`).
+    let mut lattice_len = None;
+    let mut cdt = if matches!(field, SizeField::Uniform) {
         // 3 (uniform size): the hexagonal lattice of side h₀, kept where it
         // is inside and at least h₀/2 from the boundary, in one bulk load.
-        interior = lattice(&oracle, &boundary, &edges, h0, limit, control)?;
+        interior = lattice(&boundary, &edges, h0, limit, control)?;
+        lattice_len = Some(interior.len());
         poll()?;
         let mut all = boundary.clone();
         all.extend_from_slice(&interior);
-        cdt = build(&all, &edges, &origin)?;
-    }
+        build(&all, &edges, &origin)?
+    } else {
+        oracle.cdt.clone()
+    };
     // 3: passes of circumcenter insertion (with a uniform size, they only
     // fill what the lattice left between it and the boundary).
     // The vertices whose triangles the next pass looks at (`None`: all
@@ -707,6 +718,26 @@ fn mesh_once(
     // after the first sweep only the vertices next to one that moved (before
     // or after the move) are looked at again (`None`: all of them).
     let mut active: Option<Vec<usize>> = None;
+    if let Some(l) = lattice_len {
+        // A lattice vertex whose neighbours are all lattice vertices is the
+        // centre of six equilateral triangles: its target is itself. The
+        // first sweep looks at the others only: the inserted vertices and
+        // the lattice vertices next to one of them or to the boundary.
+        let nb = boundary.len();
+        let mut list: Vec<usize> = (l..interior.len()).collect();
+        let mut marked = vec![false; l];
+        for v in (0..nb).chain(nb + l..nb + interior.len()) {
+            for e in cdt.vertex(FixedVertexHandle::from_index(v)).out_edges() {
+                let j = e.to().fix().index();
+                if (nb..nb + l).contains(&j) && !marked[j - nb] {
+                    marked[j - nb] = true;
+                    list.push(j - nb);
+                }
+            }
+        }
+        list.sort_unstable();
+        active = Some(list);
+    }
     for sweep in 0..options.smoothing {
         poll()?;
         control.report(sweep as f64 / (options.smoothing + 1) as f64);
@@ -852,17 +883,23 @@ fn mesh_once(
     poll()?;
     // 5: quality refinement.
     let before = cdt.num_vertices();
-    let refinement_complete = if options.min_angle > 0.0 {
-        let result = cdt.refine(
-            RefinementParameters::<f64>::new()
-                .exclude_outer_faces(true)
-                .with_angle_limit(AngleLimit::from_deg(options.min_angle))
-                .with_max_additional_vertices(before + 64),
-        );
-        result.refinement_complete
-    } else {
-        true
-    };
+    // Every vertex after the boundary's lies inside, so the oracle mostly
+    // classifies the faces without a flood fill; that stays right as long
+    // as the refinement adds nothing (its boundary splits would break it).
+    let inside = oracle.faces(&cdt).unwrap_or_else(|| classify(&cdt));
+    let limit_ratio = AngleLimit::from_deg(options.min_angle).radius_to_shortest_edge_limit();
+    let refinement_complete =
+        if options.min_angle > 0.0 && !refined_already(&cdt, &inside, limit_ratio) {
+            let result = cdt.refine(
+                RefinementParameters::<f64>::new()
+                    .exclude_outer_faces(true)
+                    .with_angle_limit(AngleLimit::from_deg(options.min_angle))
+                    .with_max_additional_vertices(before + 64),
+            );
+            result.refinement_complete
+        } else {
+            true
+        };
     let refined = cdt.num_vertices() - before;
     if cdt.num_vertices() > limit {
         return Err(DomainError::TooLarge {
@@ -870,12 +907,51 @@ fn mesh_once(
             estimate: cdt.num_vertices(),
         });
     }
-    Ok(extract(&cdt, h0, refined, refinement_complete))
+    let inside = if refined == 0 { inside } else { classify(&cdt) };
+    Ok(extract(&cdt, &inside, h0, refined, refinement_complete))
+}
+
+/// Whether Ruppert's refinement would leave the triangulation as it is: no
+/// inside triangle is skinny (circumradius over shortest edge above
+/// `limit = 1 / (2 sin θ)`, i.e. an angle below θ) and no boundary edge has
+/// the opposite vertex of an inside triangle strictly within its diametral
+/// circle; the two things `spade`'s `refine` acts on. Decided with a
+/// relative margin of `1e-9`: a borderline mesh goes through `refine`.
+fn refined_already(cdt: &Cdt, inside: &[bool], limit: f64) -> bool {
+    let margin = 1.0 - 1e-9;
+    cdt.inner_faces().all(|f| {
+        if !inside[f.fix().index()] {
+            return true;
+        }
+        let p = f.positions();
+        let d2 = |a: Point2<f64>, b: Point2<f64>| (a.x - b.x).powi(2) + (a.y - b.y).powi(2);
+        // Edge k runs from corner k to corner k + 1, opposite corner k + 2.
+        let e2 = [d2(p[0], p[1]), d2(p[1], p[2]), d2(p[2], p[0])];
+        let cross = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
+        // R² = a²b²c² / (16 A²) = a²b²c² / (4 cross²).
+        let shortest = e2[0].min(e2[1]).min(e2[2]);
+        if !(e2[0] * e2[1] * e2[2] <= limit * limit * shortest * 4.0 * cross * cross * margin) {
+            return false;
+        }
+        f.adjacent_edges().iter().enumerate().all(|(k, e)| {
+            if !e.is_constraint_edge() {
+                return true;
+            }
+            let (a, b, q) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+            let m = Point2::new((a.x + b.x) / 2.0, (a.y + b.y) / 2.0);
+            d2(q, m) * margin >= e2[k] / 4.0
+        })
+    })
 }
 
 /// The inside triangles, their vertices (compacted) and boundary edges.
-fn extract(cdt: &Cdt, h0: f64, refined: usize, refinement_complete: bool) -> DomainMesh {
-    let inside = classify(cdt);
+fn extract(
+    cdt: &Cdt,
+    inside: &[bool],
+    h0: f64,
+    refined: usize,
+    refinement_complete: bool,
+) -> DomainMesh {
     let mut map = vec![u32::MAX; cdt.num_vertices()];
     let mut points = Vec::new();
     let mut triangles = Vec::new();
@@ -1011,10 +1087,44 @@ struct Oracle {
 }
 
 impl Oracle {
+    /// Inside flags per face index of `cdt`, a triangulation of this
+    /// oracle's boundary points followed by inside points only; `None` when
+    /// a face of boundary points alone is not a face of the boundary
+    /// triangulation (cocircular points triangulated the other way), which
+    /// only a flood fill ([`classify`]) decides for certain.
+    fn faces(&self, cdt: &Cdt) -> Option<Vec<bool>> {
+        let mut inside = vec![false; cdt.num_all_faces()];
+        for f in cdt.inner_faces() {
+            let v = f.vertices().map(|v| v.fix().index());
+            inside[f.fix().index()] = self.known(v)?;
+        }
+        Some(inside)
+    }
+
+    /// Whether the face with vertex indices `v` (counterclockwise) is
+    /// inside, when that follows from its vertices: a later vertex, or the
+    /// same triangle in the boundary triangulation.
+    fn known(&self, v: [usize; 3]) -> Option<bool> {
+        if v.iter().any(|&k| k >= self.nb) {
+            return Some(true);
+        }
+        let (a, b, c) = (v[0], v[1], v[2]);
+        let e = self
+            .cdt
+            .vertex(FixedVertexHandle::from_index(a))
+            .out_edges()
+            .find(|e| e.to().fix().index() == b)?;
+        let f = e.face().as_inner()?;
+        (e.next().to().fix().index() == c).then(|| self.inside[f.fix().index()])
+    }
+
     /// Whether the face with vertex indices `v` and positions `pos` is inside.
     fn face(&self, v: [usize; 3], pos: &[Point2<f64>; 3]) -> bool {
-        if v.iter().any(|&k| k >= self.nb) {
-            return true;
+        // The same triangle in the boundary triangulation is the usual case:
+        // a sliver along the boundary has its centroid on an edge, where
+        // locating it could land on the other side.
+        if let Some(inside) = self.known(v) {
+            return inside;
         }
         let g = centroid(pos);
         let hint = FixedVertexHandle::from_index(v[0]);
@@ -1036,8 +1146,13 @@ impl Oracle {
 /// The points of the hexagonal lattice of side `h0` (rows along axis 1,
 /// `h0 √3/2` apart along axis 0, every other row shifted by `h0/2`) that lie
 /// inside the domain and at least `h0/2` from every boundary edge.
+///
+/// Inside is decided per row by the even-odd rule on the row's crossings
+/// with the boundary edges (the classification of the constrained
+/// triangulation, without locating each point in it); the distance test
+/// runs only where a boundary edge's bounding box touches the point's cell
+/// of side `h0` or one next to it.
 fn lattice(
-    oracle: &Oracle,
     boundary: &[[f64; 2]],
     edges: &[[usize; 2]],
     h0: f64,
@@ -1051,36 +1166,6 @@ fn lattice(
             hi[a] = hi[a].max(p[a]);
         }
     }
-    // Boundary edges by the cells (side h0) their bounding boxes touch.
-    let key = |p: [f64; 2]| {
-        (
-            ((p[0] - lo[0]) / h0).floor() as i64,
-            ((p[1] - lo[1]) / h0).floor() as i64,
-        )
-    };
-    let mut cells: CellMap<(i64, i64), Vec<usize>> = CellMap::default();
-    for (k, e) in edges.iter().enumerate() {
-        let (a, b) = (boundary[e[0]], boundary[e[1]]);
-        let (ka, kb) = (key(a), key(b));
-        for i in ka.0.min(kb.0)..=ka.0.max(kb.0) {
-            for j in ka.1.min(kb.1)..=ka.1.max(kb.1) {
-                cells.entry((i, j)).or_default().push(k);
-            }
-        }
-    }
-    let near_boundary = |p: [f64; 2]| {
-        let (i, j) = key(p);
-        (-1..=1).any(|di| {
-            (-1..=1).any(|dj| {
-                cells.get(&(i + di, j + dj)).is_some_and(|list| {
-                    list.iter().any(|&k| {
-                        let e = edges[k];
-                        segment_distance(p, boundary[e[0]], boundary[e[1]]) < 0.5 * h0
-                    })
-                })
-            })
-        })
-    };
     let dy = h0 * 3f64.sqrt() / 2.0;
     let rows = ((hi[0] - lo[0]) / dy).floor() as usize + 1;
     let columns = ((hi[1] - lo[1]) / h0).floor() as usize + 2;
@@ -1090,30 +1175,100 @@ fn lattice(
             estimate: (rows as f64 * columns as f64).min(usize::MAX as f64) as usize,
         });
     }
+    // Boundary edges by the cells (side h0) their bounding boxes touch, in
+    // one dense table (offsets and edge lists).
+    let n0 = ((hi[0] - lo[0]) / h0).floor() as usize + 1;
+    let n1 = ((hi[1] - lo[1]) / h0).floor() as usize + 1;
+    let cell = |p: [f64; 2]| {
+        (
+            (((p[0] - lo[0]) / h0).floor().max(0.0) as usize).min(n0 - 1),
+            (((p[1] - lo[1]) / h0).floor().max(0.0) as usize).min(n1 - 1),
+        )
+    };
+    let boxes = |f: &mut dyn FnMut(usize, usize)| {
+        for (k, e) in edges.iter().enumerate() {
+            let (a, b) = (cell(boundary[e[0]]), cell(boundary[e[1]]));
+            for i in a.0.min(b.0)..=a.0.max(b.0) {
+                for j in a.1.min(b.1)..=a.1.max(b.1) {
+                    f(k, i * n1 + j);
+                }
+            }
+        }
+    };
+    let mut start = vec![0usize; n0 * n1 + 1];
+    boxes(&mut |_, c| start[c + 1] += 1);
+    for c in 0..n0 * n1 {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut listed = vec![0usize; start[n0 * n1]];
+    boxes(&mut |k, c| {
+        listed[fill[c]] = k;
+        fill[c] += 1;
+    });
+    let near_boundary = |p: [f64; 2]| {
+        let (i, j) = cell(p);
+        (i.saturating_sub(1)..=(i + 1).min(n0 - 1)).any(|a| {
+            (j.saturating_sub(1)..=(j + 1).min(n1 - 1)).any(|b| {
+                let c = a * n1 + b;
+                listed[start[c]..start[c + 1]].iter().any(|&k| {
+                    let e = edges[k];
+                    segment_distance(p, boundary[e[0]], boundary[e[1]]) < 0.5 * h0
+                })
+            })
+        })
+    };
+    // The edges whose axis-0 span holds each row, for the crossings.
+    let row_of = |x: f64| (x - lo[0]) / dy;
+    let mut row_start = vec![0usize; rows + 1];
+    let spans = |f: &mut dyn FnMut(usize, usize)| {
+        for (k, e) in edges.iter().enumerate() {
+            let (a, b) = (boundary[e[0]][0], boundary[e[1]][0]);
+            let first = row_of(a.min(b)).ceil().max(0.0) as usize;
+            let last = (row_of(a.max(b)).floor().max(-1.0) + 1.0) as usize;
+            for r in first..last.min(rows) {
+                f(k, r);
+            }
+        }
+    };
+    spans(&mut |_, r| row_start[r + 1] += 1);
+    for r in 0..rows {
+        row_start[r + 1] += row_start[r];
+    }
+    let mut row_fill = row_start.clone();
+    let mut row_edges = vec![0usize; row_start[rows]];
+    spans(&mut |k, r| {
+        row_edges[row_fill[r]] = k;
+        row_fill[r] += 1;
+    });
     let mut out = Vec::new();
-    let mut hint = FixedVertexHandle::from_index(0);
+    let mut crossings: Vec<f64> = Vec::new();
     for r in 0..rows {
         if control.is_cancelled() {
             return Err(DomainError::Cancelled);
         }
         let x = lo[0] + r as f64 * dy;
-        let shift = if r % 2 == 1 { 0.5 * h0 } else { 0.0 };
-        // Rows run alternately left and right: consecutive points are neighbours.
-        for cc in 0..columns {
-            let c = if r % 2 == 1 { columns - 1 - cc } else { cc };
-            let p = [x, lo[1] + shift + c as f64 * h0];
-            if p[1] > hi[1] {
-                continue;
+        // Even-odd: an edge crosses the row when its ends lie on either
+        // side (an end on the row counts as above it).
+        crossings.clear();
+        for &k in &row_edges[row_start[r]..row_start[r + 1]] {
+            let (a, b) = (boundary[edges[k][0]], boundary[edges[k][1]]);
+            if (a[0] <= x) != (b[0] <= x) {
+                crossings.push(a[1] + (x - a[0]) * (b[1] - a[1]) / (b[0] - a[0]));
             }
-            let at = oracle.cdt.locate_with_hint(Point2::new(p[0], p[1]), hint);
-            let inside = match at {
-                PositionInTriangulation::OnFace(f) => {
-                    hint = oracle.cdt.face(f).vertices()[0].fix();
-                    oracle.inside[f.index()]
+        }
+        crossings.sort_by(f64::total_cmp);
+        let shift = if r % 2 == 1 { 0.5 * h0 } else { 0.0 };
+        let row_first = out.len();
+        for pair in crossings.chunks_exact(2) {
+            // The lattice columns strictly inside the interval.
+            let first = ((pair[0] - lo[1] - shift) / h0).floor() as i64 + 1;
+            let last = ((pair[1] - lo[1] - shift) / h0).ceil() as i64 - 1;
+            for c in first.max(0)..=last.min(columns as i64 - 1) {
+                let p = [x, lo[1] + shift + c as f64 * h0];
+                if p[1] > hi[1] || near_boundary(p) {
+                    continue;
                 }
-                _ => false,
-            };
-            if inside && !near_boundary(p) {
                 out.push(p);
                 if out.len() > limit {
                     return Err(DomainError::TooLarge {
@@ -1122,6 +1277,11 @@ fn lattice(
                     });
                 }
             }
+        }
+        // Rows run alternately left and right: consecutive points are
+        // neighbours (the vertex order of the mesh).
+        if r % 2 == 1 {
+            out[row_first..].reverse();
         }
     }
     Ok(out)
@@ -1340,6 +1500,104 @@ mod tests {
             "{:?}",
             angles.iter().cloned().fold(90.0, f64::min)
         );
+    }
+
+    /// Even-odd ray test against every boundary edge.
+    fn inside_by_rays(p: [f64; 2], boundary: &[[f64; 2]], edges: &[[usize; 2]]) -> bool {
+        let mut odd = false;
+        for e in edges {
+            let (a, b) = (boundary[e[0]], boundary[e[1]]);
+            if (a[0] <= p[0]) != (b[0] <= p[0]) {
+                let y = a[1] + (p[0] - a[0]) * (b[1] - a[1]) / (b[0] - a[0]);
+                if y < p[1] {
+                    odd = !odd;
+                }
+            }
+        }
+        odd
+    }
+
+    #[test]
+    fn the_lattice_is_every_lattice_point_inside_and_away_from_the_boundary() {
+        let disc = |c: [f64; 2], r: f64, n: usize| -> Vec<[f64; 2]> {
+            (0..n)
+                .map(|k| {
+                    let t = std::f64::consts::TAU * k as f64 / n as f64;
+                    [c[0] + r * t.cos(), c[1] + r * t.sin()]
+                })
+                .collect()
+        };
+        let hole = vec![[20.0, 20.0], [20.0, 45.0], [45.0, 45.0], [45.0, 20.0]];
+        let d = Domain::new(vec![square(100.0), hole, disc([70.0, 65.0], 15.0, 48)]).unwrap();
+        for h0 in [2.9, 7.3] {
+            let (boundary, edges, _) = d.boundary_points(&|_| 1.0, h0);
+            let got = lattice(&boundary, &edges, h0, 1 << 20, &Control::default()).unwrap();
+            // Brute force over the same lattice positions.
+            let dy = h0 * 3f64.sqrt() / 2.0;
+            let mut want = Vec::new();
+            let mut doubtful = 0;
+            for r in 0..=((100.0 / dy) as usize) {
+                let shift = if r % 2 == 1 { 0.5 * h0 } else { 0.0 };
+                for c in 0..=((100.0 / h0) as usize + 1) {
+                    let p = [r as f64 * dy, shift + c as f64 * h0];
+                    if p[1] > 100.0 || !inside_by_rays(p, &boundary, &edges) {
+                        continue;
+                    }
+                    let near = edges
+                        .iter()
+                        .map(|e| segment_distance(p, boundary[e[0]], boundary[e[1]]))
+                        .fold(f64::INFINITY, f64::min);
+                    if (near - 0.5 * h0).abs() < 1e-9 {
+                        doubtful += 1;
+                    } else if near > 0.5 * h0 {
+                        want.push(p);
+                    }
+                }
+            }
+            let key = |p: &[f64; 2]| (p[0].to_bits(), p[1].to_bits());
+            let mut g: Vec<_> = got.iter().map(key).collect();
+            let mut w: Vec<_> = want.iter().map(key).collect();
+            g.sort_unstable();
+            w.sort_unstable();
+            assert!(w.len() > 100, "{h0}: {}", w.len());
+            // Points at exactly h0/2 from the boundary may fall either way.
+            let missing = w.iter().filter(|k| g.binary_search(k).is_err()).count();
+            let extra = g.iter().filter(|k| w.binary_search(k).is_err()).count();
+            assert!(
+                missing + extra <= doubtful,
+                "{h0}: {missing} missing, {extra} extra"
+            );
+        }
+    }
+
+    #[test]
+    fn refinement_is_skipped_only_when_it_would_change_nothing() {
+        let limit = AngleLimit::from_deg(25.0).radius_to_shortest_edge_limit();
+        // A square cut into two right isoceles triangles (45°): fine; a
+        // point just inside the bottom edge's diametral circle encroaches
+        // it; a flat triangle is skinny.
+        let cases: [(&[[f64; 2]], bool); 3] = [
+            (&[], true),
+            (&[[5.0, 1.0]], false),
+            (&[[5.0, 9.0], [5.2, 9.5]], false),
+        ];
+        for (extra, fine) in cases {
+            let mut points = square(10.0);
+            points.extend_from_slice(extra);
+            let edges = vec![[0, 1], [1, 2], [2, 3], [3, 0]];
+            let origin = vec![(0, 0), (0, 1), (0, 2), (0, 3)];
+            let mut cdt = build(&points, &edges, &origin).unwrap();
+            let inside = classify(&cdt);
+            assert_eq!(refined_already(&cdt, &inside, limit), fine, "{extra:?}");
+            let before = cdt.num_vertices();
+            cdt.refine(
+                RefinementParameters::<f64>::new()
+                    .exclude_outer_faces(true)
+                    .with_angle_limit(AngleLimit::from_deg(25.0)),
+            );
+            // What the check says `refine` would do, it does.
+            assert_eq!(cdt.num_vertices() == before, fine, "{extra:?}");
+        }
     }
 
     #[test]
