@@ -7,11 +7,14 @@
 //!   field), with the anisotropic solver's adaptive stencils.
 //! * [`delaunay`]: geodesic Voronoi adjacency and vertices, the dual
 //!   (geodesic Delaunay) triangulation and the repair of its failure modes.
+//! * `farthest_cell`: the farthest cell of a map that local fronts lower
+//!   (chunk maxima in a tournament tree), shared by both samplers.
 //! * [`lloyd`]: geodesic Lloyd (centroidal Voronoi) relaxation.
 //! * [`triangulation`]: the validity checker of planar triangulations.
 
 pub mod delaunay;
 pub mod farthest;
+mod farthest_cell;
 pub mod lloyd;
 pub mod tensor_farthest;
 pub mod triangulation;

@@ -49,6 +49,7 @@
 //! which is small against cells of tens of grid steps.
 
 use super::farthest::{check_options, sample_with, Front, GridSampling, SamplingError};
+use super::farthest_cell::FarthestCell;
 use super::SamplingOptions;
 use crate::numerics::anisotropic::fast_marching::first_order_update;
 use crate::numerics::anisotropic::stencil::{self, Stencils};
@@ -117,7 +118,7 @@ pub(crate) struct TensorSampler<'a> {
     labels: Vec<i32>,
     band_label: Vec<i32>,
     band: IndexedHeap,
-    far: IndexedHeap,
+    far: FarthestCell,
     touched: Vec<u32>,
     visited: usize,
 }
@@ -147,7 +148,7 @@ impl<'a> TensorSampler<'a> {
             labels: vec![-1; n],
             band_label: vec![-1; n],
             band,
-            far: IndexedHeap::new(n),
+            far: FarthestCell::new(n),
             touched: Vec::new(),
             visited: 0,
         })
@@ -162,11 +163,7 @@ impl<'a> TensorSampler<'a> {
         control: &Control<'_>,
     ) -> Result<Self, SamplingError> {
         let mut s = Self::new(grid, metric, control)?;
-        for (i, &u) in distance.iter().enumerate() {
-            if u < f64::INFINITY {
-                s.far.push(i as u32, -u);
-            }
-        }
+        s.far.rebuild(&distance);
         s.u = distance;
         s.labels = labels;
         Ok(s)
@@ -281,6 +278,7 @@ impl<'a> TensorSampler<'a> {
     }
 
     fn end_front(&mut self) {
+        self.far.flush(&self.u);
         self.visited += self.touched.len();
         for &i in &self.touched {
             self.band.tag(i, ABSENT);
@@ -299,11 +297,11 @@ impl Front for TensorSampler<'_> {
     }
 
     fn covering_radius(&self) -> f64 {
-        self.far.peek().map_or(0.0, |(_, k)| -k)
+        self.far.peek().map_or(0.0, |(_, u)| u)
     }
 
     fn farthest(&self) -> Option<usize> {
-        self.far.peek().map(|(i, _)| i as usize)
+        self.far.peek().map(|(i, _)| i)
     }
 
     fn clear(&mut self) {
@@ -325,7 +323,7 @@ impl Front for TensorSampler<'_> {
             self.labels[i] = self.band_label[i];
             self.band.tag(id, DONE);
             self.touched.push(id);
-            self.far.set_key(id, -v);
+            self.far.mark(i);
             let (start, end) = (self.st.rev_start[i], self.st.rev_start[i + 1]);
             for r in start..end {
                 let y = self.st.rev[r] as usize;
@@ -368,9 +366,16 @@ mod tests {
         assert!(s.radii.windows(2).all(|w| w[1] <= w[0]));
         assert!(s.labels.iter().all(|&l| l >= 0));
         // The Selling stencil of the identity is the 4-neighbour one, so the
-        // values are those of the isotropic first-order march.
+        // values are those of the isotropic first-order march from the same
+        // samples (given as seeds: which of the cells tied within rounding
+        // each sampler picks is not the point).
         let cost = crate::numerics::IsotropicCost::constant(1.0).expect("cost");
-        let iso = super::super::farthest_point_sampling(&grid, &cost, &options, &Control::new())
+        let same = SamplingOptions {
+            count: Some(8),
+            seeds: s.samples.clone(),
+            ..Default::default()
+        };
+        let iso = super::super::farthest_point_sampling(&grid, &cost, &same, &Control::new())
             .expect("ok");
         let worst = s
             .distance
