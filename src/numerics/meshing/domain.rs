@@ -930,7 +930,9 @@ fn refined_already(cdt: &Cdt, inside: &[bool], limit: f64) -> bool {
         let cross = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x);
         // R² = a²b²c² / (16 A²) = a²b²c² / (4 cross²).
         let shortest = e2[0].min(e2[1]).min(e2[2]);
-        if !(e2[0] * e2[1] * e2[2] <= limit * limit * shortest * 4.0 * cross * cross * margin) {
+        // A degenerate or non-finite triangle (NaN) is not fine.
+        let fine = e2[0] * e2[1] * e2[2] <= limit * limit * shortest * 4.0 * cross * cross * margin;
+        if !fine {
             return false;
         }
         f.adjacent_edges().iter().enumerate().all(|(k, e)| {
