@@ -251,7 +251,6 @@ impl Domain {
         &self.rings
     }
 
-    /// Whether some boundary edges cross: triangulates the ring vertices.
     /// The area inside by the even-odd rule, from the rings' shoelace
     /// areas: `Σ_r (−1)^{d_r} |A_r|`, `d_r` the number of other rings
     /// around ring `r` (counted at the midpoint of its first edge). `None`
@@ -295,6 +294,7 @@ impl Domain {
         (area > 0.0).then_some(area)
     }
 
+    /// Whether some boundary edges cross: triangulates the ring vertices.
     fn check_crossings(&self) -> Result<(), DomainError> {
         let (points, edges, origin) = self.boundary_points(&|_| 1.0, f64::INFINITY);
         build(&points, &edges, &origin).map(|_| ())
