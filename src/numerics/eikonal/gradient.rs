@@ -424,12 +424,7 @@ fn second_order_step(
             }
         }
     }
-    let mut ax = [Axis {
-        k: 0,
-        a1: 0.0,
-        j1: 0,
-        a2: None,
-    }; 3];
+    let mut ax = [Axis::default(); 3];
     let mut na = 0;
     for (slot, &k) in axes.iter().enumerate() {
         let step = st.strides[k];
@@ -580,8 +575,9 @@ enum Branch {
     Step,
 }
 
-/// One axis' upwind data at a cell's last update.
-#[derive(Debug, Clone, Copy)]
+/// One axis' upwind data at a cell's last update (the default: an
+/// unfilled slot).
+#[derive(Debug, Clone, Copy, Default)]
 struct Axis {
     k: usize,
     a1: f64,
@@ -798,12 +794,7 @@ impl<'a> Replay<'a> {
         let lx = if mixed { labels[x] } else { 0 };
         let known = |j: usize| frozen(j) && (!mixed || labels[j] == lx);
 
-        let mut ax = [Axis {
-            k: 0,
-            a1: 0.0,
-            j1: 0,
-            a2: None,
-        }; 3];
+        let mut ax = [Axis::default(); 3];
         let mut na = 0;
         for &k in st.axes() {
             let s = st.strides[k];
