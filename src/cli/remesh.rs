@@ -49,9 +49,15 @@ pub struct RemeshArgs {
     /// Largest length-to-width ratio of the anisotropic cells.
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub max_ratio: f64,
-    /// Geodesic Lloyd iterations.
-    #[arg(long, default_value_t = 5)]
-    pub lloyd_iterations: usize,
+    /// Geodesic Lloyd iterations (default 1 when the final relaxation
+    /// runs, else 5).
+    #[arg(long)]
+    pub lloyd_iterations: Option<usize>,
+    /// Rounds of edge flips and tangential relaxation on the input surface
+    /// (0: vertices stay at input vertices; default `400000 / count`
+    /// clamped to 20..=100).
+    #[arg(long)]
+    pub smoothing_iterations: Option<usize>,
     /// Where to write the new mesh: `.ply`, `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "OUT.ply")]
     pub out: PathBuf,
@@ -75,6 +81,7 @@ pub fn run(args: &RemeshArgs) -> Result<(), String> {
         strength: args.strength,
         max_ratio: args.max_ratio,
         lloyd_iterations: args.lloyd_iterations,
+        smoothing_iterations: args.smoothing_iterations,
         hausdorff: true,
     };
     // Every field of the request is spelled as its flag (`max_ratio`: `--max-ratio`).

@@ -67,10 +67,20 @@ pub struct MeshRemeshRequest {
     #[serde(default = "three")]
     #[schema(minimum = 1.0, maximum = 100.0)]
     pub max_ratio: f64,
-    /// Geodesic Lloyd iterations (at most 100). Default 5.
-    #[serde(default = "five")]
+    /// Geodesic Lloyd iterations (at most 100). Default 1 when the final
+    /// relaxation runs (`smoothing_iterations` not 0, adaptation not
+    /// anisotropic), else 5.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(maximum = 100)]
-    pub lloyd_iterations: usize,
+    pub lloyd_iterations: Option<usize>,
+    /// Rounds of edge flips and tangential relaxation of the output, its
+    /// vertices projected back onto the input surface (at most 100; 0
+    /// keeps the vertices at input vertices and the geodesic dual's
+    /// connectivity; not applied with `adaptation: anisotropic`). Default:
+    /// `400000 / count` clamped to 20..=100.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(maximum = 100)]
+    pub smoothing_iterations: Option<usize>,
     /// Report the Hausdorff distance to the input. Default true.
     #[serde(default = "yes")]
     pub hausdorff: bool,
@@ -82,10 +92,6 @@ fn two() -> f64 {
 
 fn three() -> f64 {
     3.0
-}
-
-fn five() -> usize {
-    5
 }
 
 fn yes() -> bool {
@@ -125,8 +131,11 @@ impl Operation for MeshRemeshRequest {
                 "must be finite, >= 1 and <= 100",
             ));
         }
-        if self.lloyd_iterations > 100 {
+        if self.lloyd_iterations.is_some_and(|k| k > 100) {
             return Err(OpError::invalid("lloyd_iterations", "must be <= 100"));
+        }
+        if self.smoothing_iterations.is_some_and(|k| k > 100) {
+            return Err(OpError::invalid("smoothing_iterations", "must be <= 100"));
         }
         Ok(())
     }
@@ -136,7 +145,8 @@ impl Operation for MeshRemeshRequest {
     }
 
     /// Arrays: `vertices` (f64, `nv × 3`), `triangles` (int32, `nt × 3`),
-    /// `samples` (int32, the input vertex of each output vertex). Mesh:
+    /// `samples` (int32, the input vertex each output vertex was sampled at,
+    /// before the relaxation moved it on the surface). Mesh:
     /// `remeshed`. Document: `{"stats": {...}}` with the energies per
     /// Lloyd iteration and both topologies.
     fn run(
@@ -202,6 +212,7 @@ impl Operation for MeshRemeshRequest {
                 count,
                 adaptation,
                 lloyd_iterations: self.lloyd_iterations,
+                smoothing_iterations: self.smoothing_iterations,
                 ..Default::default()
             },
             control,
@@ -242,6 +253,10 @@ impl Operation for MeshRemeshRequest {
             "repair_rounds": r.repair_rounds,
             "lloyd_energies": r.energies,
             "lloyd_accepted": r.lloyd_accepted,
+            "smoothing_sweeps": r.relaxed.sweeps,
+            "edge_flips": r.relaxed.flips,
+            "vertex_moves": r.relaxed.moves,
+            "vertex_moves_undone": r.relaxed.rejected,
             "valid": r.valid,
             "flipped": r.flipped,
             "topology_kept": r.topology_kept,

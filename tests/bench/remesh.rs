@@ -107,11 +107,17 @@ fn main() {
                 Some("anisotropic") => Adaptation::Anisotropic { max_ratio: 3.0 },
                 Some(other) => panic!("unknown adaptation {other}"),
             };
-            let options = RemeshOptions {
+            let mut options = RemeshOptions {
                 count,
                 adaptation,
                 ..Default::default()
             };
+            if let Some(k) = args.get(6) {
+                options.lloyd_iterations = Some(k.parse().expect("lloyd iterations"));
+            }
+            if let Some(k) = args.get(5).filter(|k| *k != "default") {
+                options.smoothing_iterations = Some(k.parse().expect("smoothing iterations"));
+            }
             let t = Instant::now();
             let r = remesh(&mesh, &options, &Control::new()).expect("remesh");
             let seconds = t.elapsed().as_secs_f64();
@@ -124,6 +130,9 @@ fn main() {
             q["topology_kept"] = r.topology_kept.into();
             q["added"] = r.added.into();
             q["lloyd_accepted"] = r.lloyd_accepted.into();
+            q["flips"] = r.relaxed.flips.into();
+            q["moves"] = r.relaxed.moves.into();
+            q["moves_rejected"] = r.relaxed.rejected.into();
             println!("{q}");
         }
         _ => eprintln!("usage: remesh run|dump|measure ... (see the file's docs)"),

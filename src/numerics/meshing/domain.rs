@@ -73,7 +73,7 @@ type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
 /// FxHash-style multiplicative hashing of small integer keys (grid cells,
 /// coordinate bits): `SipHash` took a tenth of the meshing time.
 #[derive(Default)]
-struct CellHasher(u64);
+pub(crate) struct CellHasher(u64);
 
 impl std::hash::Hasher for CellHasher {
     fn write(&mut self, bytes: &[u8]) {
@@ -95,7 +95,7 @@ impl std::hash::Hasher for CellHasher {
     }
 }
 
-type CellMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<CellHasher>>;
+pub(crate) type CellMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<CellHasher>>;
 
 /// Ratio of circumradius to local size above which a triangle gets a vertex.
 const BETA: f64 = 0.7;

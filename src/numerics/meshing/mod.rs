@@ -11,10 +11,13 @@
 //!   approximation of the image on it and its L2 error.
 //! * [`surface`]: surface remeshing (sections 4.4 and 4.6): geodesic
 //!   sampling, geodesic Lloyd relaxation and the dual of the Voronoi cells.
+//! * [`surface_relax`]: the remesh's last step: edge flips and tangential
+//!   relaxation of its vertices, projected back onto the input surface.
 
 pub mod domain;
 pub mod image;
 pub mod surface;
+pub mod surface_relax;
 
 pub use image::{
     mesh_image, piecewise_linear, ImageMesh, ImageMeshOptions, ImageMetric, MeshingError,

@@ -75,6 +75,13 @@
 //! are compared with the input's: when all three agree (and each component
 //! is orientable) the genus `g = (2c − χ − b)/2` agrees too.
 //!
+//! **Relaxation.** Last, unless `smoothing_iterations` is 0 or the metric
+//! is a tensor field, [`super::surface_relax::relax`] flips edges to raise
+//! their smallest angles and moves every free vertex towards the centroid
+//! of its one-ring (density `W⁴`), projected back onto the input surface:
+//! the dual's vertices sit at input vertices, which makes its triangles
+//! only as regular as the input's vertex spacing allows.
+//!
 //! **Hausdorff distance.** [`hausdorff_distance`] samples each mesh at its
 //! vertices, edge midpoints and face centroids and takes the largest
 //! point-to-triangle distance to the other mesh (uniform grid of triangles),
@@ -82,6 +89,7 @@
 
 use std::collections::HashMap;
 
+use super::surface_relax::{relax, RelaxReport};
 use crate::numerics::control::Control;
 use crate::numerics::mesh::curvature::{face_normal, face_tensors_from_curvature};
 use crate::numerics::mesh::fast_marching::{march_metric, MarchPrep, MarchWork, Metric};
@@ -118,10 +126,17 @@ pub struct RemeshOptions {
     pub count: usize,
     /// Density.
     pub adaptation: Adaptation,
-    /// Geodesic Lloyd iterations (0 keeps the farthest-point sampling).
-    pub lloyd_iterations: usize,
+    /// Geodesic Lloyd iterations (0 keeps the farthest-point sampling);
+    /// `None`: [`RemeshOptions::lloyd_iterations_or_default`].
+    pub lloyd_iterations: Option<usize>,
     /// Rounds of dual repair (each adds samples to the offending cells).
     pub max_repairs: usize,
+    /// Rounds of edge flips and tangential relaxation of the output on the
+    /// input surface ([`super::surface_relax`]); 0 keeps the vertices at
+    /// input vertices and the dual's connectivity; `None`:
+    /// [`default_smoothing_iterations`]. Not applied under
+    /// [`Adaptation::Anisotropic`].
+    pub smoothing_iterations: Option<usize>,
 }
 
 impl Default for RemeshOptions {
@@ -129,10 +144,39 @@ impl Default for RemeshOptions {
         Self {
             count: 1000,
             adaptation: Adaptation::Uniform,
-            lloyd_iterations: 5,
+            lloyd_iterations: None,
             max_repairs: 8,
+            smoothing_iterations: None,
         }
     }
+}
+
+impl RemeshOptions {
+    /// Whether the final relaxation runs: not under a tensor metric, not
+    /// with `smoothing_iterations: Some(0)`.
+    pub fn relaxes(&self) -> bool {
+        !matches!(self.adaptation, Adaptation::Anisotropic { .. })
+            && self.smoothing_iterations != Some(0)
+    }
+
+    /// The geodesic Lloyd iterations to run: as given, else 1 when the
+    /// relaxation follows (it does the centroidal work on the output; on
+    /// icospheres 0, 1, 2 and 5 geodesic iterations before it give the
+    /// same angles and Hausdorff distance within 3 %, and each costs a
+    /// march over the whole input), else 5.
+    pub fn lloyd_iterations_or_default(&self) -> usize {
+        self.lloyd_iterations
+            .unwrap_or(if self.relaxes() { 1 } else { 5 })
+    }
+}
+
+/// The default number of relaxation sweeps for `count` output vertices:
+/// `400,000 / count` clamped to `20 ..= 100` (about 0.8 s of sweeps at
+/// most on this project's 2-core machine; measured on icospheres, the
+/// smallest angles still rise between 20 and 100 sweeps at 1,000
+/// vertices).
+pub fn default_smoothing_iterations(count: usize) -> usize {
+    (400_000 / count.max(1)).clamp(20, 100)
 }
 
 /// Combinatorial topology of a triangle mesh.
@@ -280,10 +324,11 @@ pub enum RemeshError {
 /// The new mesh and how it was made.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Remesh {
-    /// The new mesh: vertices at the samples (input vertices), faces
-    /// oriented like the input.
+    /// The new mesh, faces oriented like the input: vertices at the samples
+    /// (input vertices), then moved on the input surface by the relaxation
+    /// when `smoothing_iterations > 0`.
     pub mesh: TriMesh,
-    /// Input vertex of each output vertex.
+    /// Input vertex each output vertex was sampled at.
     pub samples: Vec<u32>,
     /// Lloyd energy `Σ A_v d²` after the sampling and after each accepted
     /// iteration (non-increasing).
@@ -303,8 +348,10 @@ pub struct Remesh {
     pub valid: bool,
     /// Components, boundary loops, Euler characteristic and genus agree.
     pub topology_kept: bool,
-    /// Output triangles whose normal opposes their input face's.
+    /// Output triangles of the dual whose normal opposes their input face's.
     pub flipped: usize,
+    /// What the final flips and tangential relaxation did.
+    pub relaxed: RelaxReport,
 }
 
 /// Remeshes `mesh`; see the module docs.
@@ -433,7 +480,8 @@ fn remesh_ordered(
     };
     let areas = vertex_areas(mesh);
     let inner = control.cancel_only();
-    let total_steps = (options.count + options.lloyd_iterations * options.count / 4 + 1) as f64;
+    let lloyd_iterations = options.lloyd_iterations_or_default();
+    let total_steps = (options.count + lloyd_iterations * options.count / 4 + 1) as f64;
 
     // 1. Farthest-point sampling with local fronts.
     let mut field = MeshDistance {
@@ -478,7 +526,7 @@ fn remesh_ordered(
     // 2. Geodesic Lloyd iterations, each kept only if the energy decreased.
     let mut energies = vec![energy(&field, &areas)];
     let mut lloyd_accepted = 0;
-    for it in 0..options.lloyd_iterations {
+    for it in 0..lloyd_iterations {
         if control.is_cancelled() {
             return Err(RemeshError::Cancelled);
         }
@@ -516,19 +564,53 @@ fn remesh_ordered(
         let valid = dual.bad.is_empty();
         let kept = valid && out_topology.same_topology(&input_topology);
         if kept || repair_rounds >= options.max_repairs {
+            let mut out = dual.mesh;
+            let mut relaxed = RelaxReport::default();
+            // 4. Flips and tangential relaxation (not under a tensor metric:
+            // they would make the cells isotropic again).
+            let sweeps = options
+                .smoothing_iterations
+                .unwrap_or_else(|| default_smoothing_iterations(options.count));
+            if valid && sweeps > 0 && options.relaxes() {
+                let density: Option<Vec<f64>> = weights
+                    .as_ref()
+                    .map(|w| w.iter().map(|x| x.powi(4)).collect());
+                let mut host: Vec<u32> = samples
+                    .iter()
+                    .map(|&s| topo.faces_of(s).first().copied().unwrap_or(0))
+                    .collect();
+                let mut positions = out.positions().to_vec();
+                let mut faces = out.faces().to_vec();
+                relaxed = relax(
+                    mesh,
+                    &topo,
+                    density.as_deref(),
+                    &mut positions,
+                    &mut faces,
+                    &mut host,
+                    sweeps,
+                    &inner,
+                );
+                if control.is_cancelled() {
+                    return Err(RemeshError::Cancelled);
+                }
+                out = TriMesh::from_parts_unchecked(positions, faces);
+            }
+            let output_topology = TopologySummary::of(&out);
             control.report(1.0);
             return Ok(Remesh {
-                mesh: dual.mesh,
+                mesh: out,
                 samples,
                 energies,
                 lloyd_accepted,
                 added,
                 repair_rounds,
                 input_topology,
-                output_topology: out_topology,
+                output_topology,
                 valid,
-                topology_kept: kept,
+                topology_kept: kept && output_topology.same_topology(&input_topology),
                 flipped: dual.flipped,
+                relaxed,
             });
         }
         repair_rounds += 1;
@@ -1122,6 +1204,57 @@ mod tests {
         );
         assert_eq!(r.output_topology.genus, Some(0));
         assert!(rel < 0.02, "hausdorff {rel}");
+    }
+
+    /// The final relaxation: on an icosphere the output's smallest angles
+    /// rise, every vertex stays on the input surface, the Hausdorff
+    /// distance does not grow and the topology is kept.
+    #[test]
+    fn relaxation_regularises_the_triangles_on_the_surface() {
+        let mesh = icosphere(5, 1.0);
+        let options = |smoothing_iterations| RemeshOptions {
+            count: 600,
+            smoothing_iterations,
+            ..Default::default()
+        };
+        let plain = remesh(&mesh, &options(Some(0)), &Control::new()).expect("remesh");
+        let relaxed = remesh(&mesh, &options(None), &Control::new()).expect("remesh");
+        assert_eq!(plain.relaxed, RelaxReport::default());
+        assert_eq!(relaxed.relaxed.sweeps, default_smoothing_iterations(600));
+        assert!(relaxed.relaxed.moves > 0 && relaxed.relaxed.flips > 0);
+        check_valid(&relaxed);
+        assert!(relaxed.topology_kept, "{:?}", relaxed.output_topology);
+        let angles = |m: &TriMesh| -> Vec<f64> {
+            m.faces()
+                .iter()
+                .map(|f| {
+                    let p = f.map(|v| m.position(v));
+                    crate::numerics::meshing::surface_relax::min_angle_sin(p[0], p[1], p[2])
+                        .asin()
+                        .to_degrees()
+                })
+                .collect()
+        };
+        let (a, b) = (angles(&plain.mesh), angles(&relaxed.mesh));
+        let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+        let least = |x: &[f64]| x.iter().copied().fold(90.0, f64::min);
+        println!(
+            "mean smallest angle {:.2} -> {:.2}, least {:.2} -> {:.2}",
+            mean(&a),
+            mean(&b),
+            least(&a),
+            least(&b)
+        );
+        assert!(mean(&b) >= mean(&a) + 3.0);
+        assert!(least(&b) >= 30.0);
+        let grid = TriangleGrid::new(&mesh);
+        for p in relaxed.mesh.positions() {
+            assert!(grid.distance(*p) < 1e-9, "{p:?} off the surface");
+        }
+        let h = |m: &TriMesh| hausdorff_distance(&mesh, m, &Control::new()).expect("hausdorff");
+        let (ha, hb) = (h(&plain.mesh), h(&relaxed.mesh));
+        println!("hausdorff {ha:.3e} -> {hb:.3e}");
+        assert!(hb <= ha, "{hb} > {ha}");
     }
 
     #[test]

@@ -360,8 +360,9 @@ pub fn benchmark_shape(
         &RemeshOptions {
             count,
             adaptation: Adaptation::Uniform,
-            lloyd_iterations: 1,
+            lloyd_iterations: Some(1),
             max_repairs: 8,
+            smoothing_iterations: Some(0),
         },
         control,
     )?
