@@ -274,41 +274,51 @@ pub struct Topology {
 }
 
 impl Topology {
-    /// Builds the adjacency in `O(F log F)`.
+    /// Builds the adjacency in `O(V + F)` (a counting sort of the half-edges
+    /// by their smaller end, then a sort of each vertex's few edges).
     pub fn new(mesh: &TriMesh) -> Self {
         let nf = mesh.num_faces();
         let nv = mesh.num_vertices();
-        // Sort half-edges by their undirected edge.
-        let mut keys: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * nf);
-        for (f, face) in mesh.faces().iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (face[k], face[(k + 1) % 3]);
-                keys.push((a.min(b), a.max(b), (3 * f + k) as u32));
-            }
-        }
-        keys.sort_unstable();
+        // Half-edges grouped by their undirected edge: bucketed by the
+        // smaller end (a counting sort), then sorted by the larger end
+        // within each bucket (a vertex's few edges).
+        let faces = mesh.faces();
+        let ends = |h: usize| {
+            let face = faces[h / 3];
+            let (a, b) = (face[h % 3], face[(h + 1) % 3]);
+            (a.min(b), a.max(b))
+        };
+        let (start, mut halves) = crate::numerics::buckets::bucket(
+            nv,
+            (0..3 * nf).map(|h| (ends(h).0 as usize, h as u32)),
+        );
         let mut opposite = vec![NONE; 3 * nf];
         let (mut boundary_edges, mut non_manifold_edges, mut misoriented_edges) = (0, 0, 0);
-        let mut i = 0;
-        while i < keys.len() {
-            let mut j = i + 1;
-            while j < keys.len() && keys[j].0 == keys[i].0 && keys[j].1 == keys[i].1 {
-                j += 1;
-            }
-            match j - i {
-                1 => boundary_edges += 1,
-                2 => {
-                    let (h0, h1) = (keys[i].2, keys[i + 1].2);
-                    opposite[h0 as usize] = h1;
-                    opposite[h1 as usize] = h0;
-                    let from = |h: u32| mesh.faces()[h as usize / 3][h as usize % 3];
-                    if from(h0) == from(h1) {
-                        misoriented_edges += 1;
-                    }
+        let from = |h: u32| faces[h as usize / 3][h as usize % 3];
+        for v in 0..nv {
+            let group = &mut halves[start[v]..start[v + 1]];
+            group.sort_unstable_by_key(|&h| (ends(h as usize).1, h));
+            let mut i = 0;
+            while i < group.len() {
+                let far = ends(group[i] as usize).1;
+                let mut j = i + 1;
+                while j < group.len() && ends(group[j] as usize).1 == far {
+                    j += 1;
                 }
-                _ => non_manifold_edges += 1,
+                match j - i {
+                    1 => boundary_edges += 1,
+                    2 => {
+                        let (h0, h1) = (group[i], group[i + 1]);
+                        opposite[h0 as usize] = h1;
+                        opposite[h1 as usize] = h0;
+                        if from(h0) == from(h1) {
+                            misoriented_edges += 1;
+                        }
+                    }
+                    _ => non_manifold_edges += 1,
+                }
+                i = j;
             }
-            i = j;
         }
         // Vertex -> faces (CSR).
         let mut counts = vec![0u32; nv + 1];
