@@ -49,7 +49,7 @@ pub struct RemeshArgs {
     /// Largest length-to-width ratio of the anisotropic cells.
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub max_ratio: f64,
-    /// Geodesic Lloyd iterations (default 1 when the final relaxation
+    /// Geodesic Lloyd iterations (default 0 when the final relaxation
     /// runs, else 5).
     #[arg(long)]
     pub lloyd_iterations: Option<usize>,

@@ -67,7 +67,7 @@ pub struct MeshRemeshRequest {
     #[serde(default = "three")]
     #[schema(minimum = 1.0, maximum = 100.0)]
     pub max_ratio: f64,
-    /// Geodesic Lloyd iterations (at most 100). Default 1 when the final
+    /// Geodesic Lloyd iterations (at most 100). Default 0 when the final
     /// relaxation runs (`smoothing_iterations` not 0, adaptation not
     /// anisotropic), else 5.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -240,6 +240,11 @@ impl Operation for MeshRemeshRequest {
         };
         let note = if r.topology_kept {
             "the output keeps the input's components, boundary loops and genus".to_string()
+        } else if r.cleaned.removed_faces > 0 || r.cleaned.dropped_vertices > 0 {
+            format!(
+                "the dual could not be repaired everywhere: {} triangles were removed to make the output manifold (they leave holes) and {} samples in no triangle were dropped; raise count to keep more of the input's topology",
+                r.cleaned.removed_faces, r.cleaned.dropped_vertices
+            )
         } else if r.valid {
             "the output is a valid manifold but its topology differs from the input's: the sampling is too coarse for it (raise count)".to_string()
         } else {
@@ -259,6 +264,8 @@ impl Operation for MeshRemeshRequest {
             "vertex_moves_undone": r.relaxed.rejected,
             "valid": r.valid,
             "flipped": r.flipped,
+            "removed_faces": r.cleaned.removed_faces,
+            "dropped_vertices": r.cleaned.dropped_vertices,
             "topology_kept": r.topology_kept,
             "topology_note": note,
             "input_topology": topo_json(&r.input_topology),

@@ -129,6 +129,12 @@ fn main() {
             q["seconds"] = seconds.into();
             q["topology_kept"] = r.topology_kept.into();
             q["added"] = r.added.into();
+            q["repair_rounds"] = r.repair_rounds.into();
+            q["removed_faces"] = r.cleaned.removed_faces.into();
+            q["dropped_vertices"] = r.cleaned.dropped_vertices.into();
+            q["valid"] = r.valid.into();
+            q["input_topology"] = format!("{:?}", r.input_topology).into();
+            q["output_topology"] = format!("{:?}", r.output_topology).into();
             q["lloyd_accepted"] = r.lloyd_accepted.into();
             q["flips"] = r.relaxed.flips.into();
             q["moves"] = r.relaxed.moves.into();

@@ -10,10 +10,12 @@
 //!
 //! 1. **flips** every interior edge `ab` (faces `abc`, `bad`) to `cd` when
 //!    that raises the smallest angle of the two triangles (in a plane, the
-//!    Delaunay flip), the quad is nearly flat (its normals within 20°), `cd`
+//!    Delaunay flip), the quad is not folded (its normals within 45°), `cd`
 //!    is not already an edge and `a`, `b` keep at least three faces;
 //! 2. **moves** each free vertex `p` (not on a boundary, its one-ring
-//!    normals within 40° of the vertex normal `n`) by a Lloyd step towards
+//!    normals within 75° of the vertex normal `n`, its input face not
+//!    touching a sharp input edge, one of dihedral angle above 60°) by a
+//!    Lloyd step towards
 //!    the density-weighted centroid `c` of its Voronoi cell within the
 //!    one-ring, over-relaxed by `ω = 1.8` and kept tangent:
 //!
@@ -30,8 +32,10 @@
 //!    nearest point of the faces around it, repeated while it gets closer
 //!    (a local, not global, nearest point: thin parts do not swap sheets).
 //!    A move is undone when it turns a one-ring triangle's normal by 90° or
-//!    more or when the projection lands farther from the tangential target
-//!    than half the vertex's shortest edge (a fold of the input).
+//!    more, when the projection lands farther from the tangential target
+//!    than half the vertex's shortest edge (a fold of the input) or on a
+//!    face touching a sharp edge (creases and corners keep the vertices
+//!    they have; vertices do not slide onto them).
 //!
 //! Lloyd's iteration converges linearly, hence the over-relaxation and the
 //! default iteration count of [`super::surface::RemeshOptions`], which
@@ -49,9 +53,11 @@ use crate::numerics::control::Control;
 use crate::numerics::mesh::{cross, dot, norm, sub, Topology, TriMesh};
 
 /// Largest angle between the two normals of a flipped quad.
-const FLIP_DIHEDRAL_COS: f64 = 0.939_692_620_785_908_4; // cos 20°
+const FLIP_DIHEDRAL_COS: f64 = std::f64::consts::FRAC_1_SQRT_2; // cos 45°
+/// Smallest dihedral angle (between face normals) of a sharp input edge.
+const SHARP_EDGE_COS: f64 = 0.5; // cos 60°
 /// Largest angle between a moved vertex's normal and its one-ring normals.
-const MOVE_NORMAL_COS: f64 = 0.766_044_443_118_978; // cos 40°
+const MOVE_NORMAL_COS: f64 = 0.258_819_045_102_520_8; // cos 75°
 
 /// Factor of each Lloyd move (`1 < ω < 2`: over-relaxation, which speeds
 /// up Lloyd's linear convergence; measured on icospheres, 20 iterations at
@@ -180,7 +186,7 @@ fn circumcentre(t: [[f64; 3]; 3]) -> [f64; 3] {
     let (a, b) = (sub(t[1], t[0]), sub(t[2], t[0]));
     let n = cross(a, b);
     let n2 = dot(n, n);
-    if !(n2 > 0.0) {
+    if n2.is_nan() || n2 <= 0.0 {
         return std::array::from_fn(|j| (t[0][j] + t[1][j] + t[2][j]) / 3.0);
     }
     // o - t0 = (|a|² (b × n) + |b|² (n × a)) / (2 |n|²)
@@ -318,20 +324,34 @@ fn flip_edges(ps: &[[f64; 3]], faces: &mut [[u32; 3]], sweeps: usize) -> usize {
     total
 }
 
+/// The input surface of [`relax`].
+#[derive(Debug, Clone, Copy)]
+pub struct InputSurface<'m> {
+    /// The input mesh.
+    pub mesh: &'m TriMesh,
+    /// Its adjacency.
+    pub topology: &'m Topology,
+    /// `ρ` per input vertex (`None`: 1).
+    pub density: Option<&'m [f64]>,
+}
+
 /// Relaxes `out` (positions `positions`, faces `faces`) on the surface
-/// `input`: `iterations` rounds of flips and moves, then a last round of
+/// `surface`: `iterations` rounds of flips and moves, then a last round of
 /// flips (see the module docs). `host[v]` is an input face near output
-/// vertex `v` (updated); `density` is `ρ` per input vertex (`None`: 1).
+/// vertex `v` (updated).
 pub fn relax(
-    input: &TriMesh,
-    input_topology: &Topology,
-    density: Option<&[f64]>,
+    surface: InputSurface<'_>,
     positions: &mut [[f64; 3]],
     faces: &mut [[u32; 3]],
     host: &mut [u32],
     iterations: usize,
     control: &Control<'_>,
 ) -> RelaxReport {
+    let InputSurface {
+        mesh: input,
+        topology: input_topology,
+        density,
+    } = surface;
     let mut report = RelaxReport::default();
     if iterations == 0 || faces.is_empty() {
         return report;
@@ -361,6 +381,27 @@ pub fn relax(
             }
         }
     }
+    // Input vertices on a sharp edge of the input (dihedral angle above
+    // 60°): an output vertex whose face touches one stays, and no move
+    // lands on one, so creases and corners keep their vertices.
+    let mut sharp = vec![false; input.num_vertices()];
+    for (f, t) in input.faces().iter().enumerate() {
+        for k in 0..3 {
+            if let Some(g) = input_topology.neighbour(f, k) {
+                let (nf, ng) = (
+                    unit(triangle_normal(input.positions(), *t)),
+                    unit(triangle_normal(input.positions(), input.faces()[g])),
+                );
+                if let (Some(nf), Some(ng)) = (nf, ng) {
+                    if dot(nf, ng) < SHARP_EDGE_COS {
+                        sharp[t[k] as usize] = true;
+                        sharp[t[(k + 1) % 3] as usize] = true;
+                    }
+                }
+            }
+        }
+    }
+    let on_sharp = |f: u32| input.faces()[f as usize].iter().any(|&u| sharp[u as usize]);
     let host_density = |f: u32| -> f64 {
         density.map_or(1.0, |rho| {
             input.faces()[f as usize]
@@ -396,7 +437,7 @@ pub fn relax(
             }
         }
         for v in 0..nv {
-            if fixed[v] {
+            if fixed[v] || on_sharp(host[v]) {
                 continue;
             }
             let ring = &around[offsets[v] as usize..offsets[v + 1] as usize];
@@ -460,7 +501,7 @@ pub fn relax(
             }
             let target = [p[0] + step[0], p[1] + step[1], p[2] + step[2]];
             let (q, f) = projector.project(host[v], target);
-            if norm(sub(q, target)) > 0.5 * shortest {
+            if norm(sub(q, target)) > 0.5 * shortest || on_sharp(f) {
                 report.rejected += 1;
                 continue;
             }
