@@ -353,6 +353,31 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
         "{stats}"
     );
     assert!(v["remeshed"]["id"].is_string(), "{v}");
+    // The final relaxation ran (its default sweeps for 400 vertices) and
+    // moved the vertices; with 0 sweeps it does not run.
+    assert_eq!(stats["smoothing_sweeps"], 100, "{stats}");
+    assert!(stats["vertex_moves"].as_u64().unwrap() > 0, "{stats}");
+    let res = post(
+        &app,
+        "/v1/mesh/remesh",
+        json!({"mesh": id, "count": 400, "smoothing_iterations": 0}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let plain: serde_json::Value = res.json().await.unwrap();
+    assert_eq!(plain["stats"]["smoothing_sweeps"], 0, "{plain}");
+    assert_eq!(plain["stats"]["vertex_moves"], 0, "{plain}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/remesh",
+            json!({"mesh": id, "count": 400, "smoothing_iterations": 101}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("smoothing_iterations"), "{p}");
     let p = problem(
         post(&app, "/v1/mesh/remesh", json!({"mesh": id, "count": 5000})).await,
         422,
