@@ -49,6 +49,7 @@
 //! of the input's topology stays one.
 
 use super::domain::CellMap;
+use crate::numerics::buckets::bucket;
 use crate::numerics::control::Control;
 use crate::numerics::mesh::{cross, dot, norm, sub, Topology, TriMesh};
 
@@ -419,28 +420,18 @@ pub fn relax(
         report.sweeps += 1;
         report.flips += flip_edges(positions, faces, 1);
         // Faces of each vertex (CSR).
-        let mut offsets = vec![0u32; nv + 1];
-        for t in faces.iter() {
-            for &v in t {
-                offsets[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..nv {
-            offsets[v + 1] += offsets[v];
-        }
-        let mut fill = offsets.clone();
-        let mut around = vec![0u32; 3 * faces.len()];
-        for (f, t) in faces.iter().enumerate() {
-            for &v in t {
-                around[fill[v as usize] as usize] = f as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (offsets, around) = bucket(
+            nv,
+            faces
+                .iter()
+                .enumerate()
+                .flat_map(|(f, t)| t.map(|v| (v as usize, f as u32))),
+        );
         for v in 0..nv {
             if fixed[v] || on_sharp(host[v]) {
                 continue;
             }
-            let ring = &around[offsets[v] as usize..offsets[v + 1] as usize];
+            let ring = &around[offsets[v]..offsets[v + 1]];
             if ring.len() < 3 {
                 continue;
             }
@@ -562,21 +553,26 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_flat_quad_takes_the_diagonal_of_larger_smallest_angle() {
-        // A rhombus split along its long diagonal: the short one is better.
+    /// A rhombus `0 1 2 3` split along its long diagonal `0-1`, with a fan
+    /// around it so that `0` and `1` have more than three faces; `lift`
+    /// raises corner 2 to fold the rhombus along `0-1` by 60°.
+    fn rhombus(lift: bool) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let top = if lift {
+            [2.0, 0.5, 0.75f64.sqrt()]
+        } else {
+            [2.0, 1.0, 0.0]
+        };
         let ps = vec![
             [0.0, 0.0, 0.0],
             [4.0, 0.0, 0.0],
-            [2.0, 1.0, 0.0],
+            top,
             [2.0, -1.0, 0.0],
-            // A fan around the rhombus so that a and b have valence > 3.
             [-1.0, 1.0, 0.0],
             [-1.0, -1.0, 0.0],
             [5.0, 1.0, 0.0],
             [5.0, -1.0, 0.0],
         ];
-        let mut faces = vec![
+        let faces = vec![
             [0, 1, 2],
             [1, 0, 3],
             [0, 2, 4],
@@ -586,15 +582,26 @@ mod tests {
             [1, 7, 6],
             [1, 3, 7],
         ];
+        (ps, faces)
+    }
+
+    fn has_edge(faces: &[[u32; 3]], a: u32, b: u32) -> bool {
+        faces
+            .iter()
+            .any(|t| (0..3).any(|k| t[k] == a && t[(k + 1) % 3] == b))
+    }
+
+    #[test]
+    fn a_flat_quad_takes_the_diagonal_of_larger_smallest_angle() {
+        // The short diagonal 2-3 is better.
+        let (ps, mut faces) = rhombus(false);
         let flips = flip_edges(&ps, &mut faces, 4);
         assert_eq!(flips, 1);
-        let has = |a: u32, b: u32| {
-            faces
-                .iter()
-                .any(|t| (0..3).any(|k| t[k] == a && t[(k + 1) % 3] == b))
-        };
-        assert!(has(2, 3) && has(3, 2), "{faces:?}");
-        assert!(!has(0, 1) && !has(1, 0));
+        assert!(
+            has_edge(&faces, 2, 3) && has_edge(&faces, 3, 2),
+            "{faces:?}"
+        );
+        assert!(!has_edge(&faces, 0, 1) && !has_edge(&faces, 1, 0));
         // Orientation kept: every normal still +z.
         for t in &faces {
             assert!(triangle_normal(&ps, *t)[2] > 0.0, "{t:?}");
@@ -605,35 +612,15 @@ mod tests {
 
     #[test]
     fn a_bent_quad_is_not_flipped() {
-        // Same rhombus folded by 60° along the long diagonal.
-        let h = 1.0;
-        let ps = vec![
-            [0.0, 0.0, 0.0],
-            [4.0, 0.0, 0.0],
-            [2.0, h * 0.5, h * 0.866],
-            [2.0, -1.0, 0.0],
-            [-1.0, 1.0, 0.0],
-            [-1.0, -1.0, 0.0],
-            [5.0, 1.0, 0.0],
-            [5.0, -1.0, 0.0],
-        ];
-        let mut faces = vec![
-            [0, 1, 2],
-            [1, 0, 3],
-            [0, 2, 4],
-            [0, 4, 5],
-            [0, 5, 3],
-            [1, 6, 2],
-            [1, 7, 6],
-            [1, 3, 7],
-        ];
+        let (ps, mut faces) = rhombus(true);
         flip_edges(&ps, &mut faces, 4);
-        let has = |a: u32, b: u32| {
-            faces
-                .iter()
-                .any(|t| (0..3).any(|k| t[k] == a && t[(k + 1) % 3] == b))
-        };
-        assert!(has(0, 1) && has(1, 0), "{faces:?}");
-        assert!(!has(2, 3) && !has(3, 2), "{faces:?}");
+        assert!(
+            has_edge(&faces, 0, 1) && has_edge(&faces, 1, 0),
+            "{faces:?}"
+        );
+        assert!(
+            !has_edge(&faces, 2, 3) && !has_edge(&faces, 3, 2),
+            "{faces:?}"
+        );
     }
 }
