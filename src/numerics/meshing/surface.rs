@@ -85,7 +85,8 @@
 //! **Relaxation.** Last, unless `smoothing_iterations` is 0 or the metric
 //! is a tensor field, [`super::surface_relax::relax`] flips edges to raise
 //! their smallest angles and moves every free vertex towards the centroid
-//! of its one-ring (density `W⁴`), projected back onto the input surface:
+//! of its Voronoi cell within its one-ring (density `W⁴`), projected back
+//! onto the input surface:
 //! the dual's vertices sit at input vertices, which makes its triangles
 //! only as regular as the input's vertex spacing allows.
 //!
@@ -1400,7 +1401,22 @@ mod tests {
     #[test]
     fn small_sphere_keeps_topology_and_energy_never_increases() {
         let mesh = icosphere(4, 1.0);
-        let (r, rel) = run(&mesh, 500, Adaptation::Uniform);
+        // Geodesic Lloyd is off by default before the relaxation: ask for it.
+        let options = RemeshOptions {
+            count: 500,
+            lloyd_iterations: Some(5),
+            ..Default::default()
+        };
+        let r = remesh(&mesh, &options, &Control::new()).expect("remesh");
+        let rel = hausdorff_distance(&mesh, &r.mesh, &Control::new()).expect("hausdorff")
+            / bounding_diagonal(&mesh);
+        assert!(r.lloyd_accepted >= 1, "{:?}", r.energies);
+        assert_eq!(r.energies.len(), r.lloyd_accepted + 1);
+        assert!(
+            r.energies[r.lloyd_accepted] < r.energies[0],
+            "{:?}",
+            r.energies
+        );
         check_valid(&r);
         assert!(
             r.topology_kept,
