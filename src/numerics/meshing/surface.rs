@@ -626,6 +626,7 @@ fn remesh_ordered(
                     InputSurface {
                         mesh,
                         topology: &topo,
+                        face_normals: &face_normals,
                         density: density.as_deref(),
                     },
                     &mut positions,

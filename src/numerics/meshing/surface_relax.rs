@@ -51,7 +51,7 @@
 use super::domain::CellMap;
 use crate::numerics::buckets::bucket;
 use crate::numerics::control::Control;
-use crate::numerics::mesh::{cross, dot, norm, sub, Topology, TriMesh};
+use crate::numerics::mesh::{cross, dot, norm, sub, Topology, TriMesh, NONE};
 
 /// Largest angle between the two normals of a flipped quad.
 const FLIP_DIHEDRAL_COS: f64 = std::f64::consts::FRAC_1_SQRT_2; // cos 45°
@@ -332,6 +332,8 @@ pub struct InputSurface<'m> {
     pub mesh: &'m TriMesh,
     /// Its adjacency.
     pub topology: &'m Topology,
+    /// Its face normals (any length: only directions are used).
+    pub face_normals: &'m [[f64; 3]],
     /// `ρ` per input vertex (`None`: 1).
     pub density: Option<&'m [f64]>,
 }
@@ -351,6 +353,7 @@ pub fn relax(
     let InputSurface {
         mesh: input,
         topology: input_topology,
+        face_normals,
         density,
     } = surface;
     let mut report = RelaxReport::default();
@@ -365,20 +368,13 @@ pub fn relax(
     // Vertices on a boundary edge stay where they are.
     let mut fixed = vec![false; nv];
     {
-        let mut half: CellMap<u64, ()> = CellMap::default();
-        half.reserve(3 * faces.len());
-        for t in faces.iter() {
-            for k in 0..3 {
-                half.insert(key(t[k], t[(k + 1) % 3]), ());
-            }
-        }
-        for t in faces.iter() {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                if !half.contains_key(&key(b, a)) {
-                    fixed[a as usize] = true;
-                    fixed[b as usize] = true;
-                }
+        let out = TriMesh::from_parts_unchecked(positions.to_vec(), faces.to_vec());
+        let topo = Topology::new(&out);
+        for (h, &o) in topo.opposite.iter().enumerate() {
+            if o == NONE {
+                let t = faces[h / 3];
+                fixed[t[h % 3] as usize] = true;
+                fixed[t[(h + 1) % 3] as usize] = true;
             }
         }
     }
@@ -388,17 +384,17 @@ pub fn relax(
     let mut sharp = vec![false; input.num_vertices()];
     for (f, t) in input.faces().iter().enumerate() {
         for k in 0..3 {
-            if let Some(g) = input_topology.neighbour(f, k) {
-                let (nf, ng) = (
-                    unit(triangle_normal(input.positions(), *t)),
-                    unit(triangle_normal(input.positions(), input.faces()[g])),
-                );
-                if let (Some(nf), Some(ng)) = (nf, ng) {
-                    if dot(nf, ng) < SHARP_EDGE_COS {
-                        sharp[t[k] as usize] = true;
-                        sharp[t[(k + 1) % 3] as usize] = true;
+            match input_topology.neighbour(f, k) {
+                Some(g) if g > f => {
+                    let (nf, ng) = (unit(face_normals[f]), unit(face_normals[g]));
+                    if let (Some(nf), Some(ng)) = (nf, ng) {
+                        if dot(nf, ng) < SHARP_EDGE_COS {
+                            sharp[t[k] as usize] = true;
+                            sharp[t[(k + 1) % 3] as usize] = true;
+                        }
                     }
                 }
+                _ => {}
             }
         }
     }
