@@ -538,8 +538,10 @@ pub(crate) fn text_lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &str)> {
         .split(|&b| b == b'\n')
         .enumerate()
         .filter_map(|(i, l)| {
-            let s = std::str::from_utf8(l).ok()?;
-            let s = s.split('#').next().unwrap_or_default().trim();
+            // The comment cut on bytes ('#' is ASCII, never inside a UTF-8
+            // sequence), then ASCII whitespace trimmed.
+            let l = l.iter().position(|&b| b == b'#').map_or(l, |p| &l[..p]);
+            let s = std::str::from_utf8(l.trim_ascii()).ok()?;
             (!s.is_empty()).then_some((i + 1, s))
         })
 }

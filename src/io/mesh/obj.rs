@@ -10,7 +10,7 @@ pub(crate) fn read(bytes: &[u8], limits: &MeshLimits) -> Result<RawMesh, MeshIoE
     let mut raw = RawMesh::default();
     let mut poly: Vec<i64> = Vec::new();
     for (line, s) in text_lines(bytes) {
-        let mut it = s.split_whitespace();
+        let mut it = s.split_ascii_whitespace();
         match it.next() {
             Some("v") => {
                 let mut p = [0.0; 3];

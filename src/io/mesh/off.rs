@@ -28,7 +28,7 @@ pub(crate) fn read(bytes: &[u8], limits: &MeshLimits) -> Result<RawMesh, MeshIoE
         (l0, rest)
     };
     let nums: Vec<u64> = counts
-        .split_whitespace()
+        .split_ascii_whitespace()
         .map(|t| t.parse::<u64>())
         .collect::<Result<_, _>>()
         .map_err(|_| MeshIoError::corrupt(F, Some(lc), format!("bad counts '{counts}'")))?;
@@ -52,7 +52,7 @@ pub(crate) fn read(bytes: &[u8], limits: &MeshLimits) -> Result<RawMesh, MeshIoE
         let (line, s) = lines
             .next()
             .ok_or_else(|| MeshIoError::corrupt(F, None, format!("expected {nv} vertices")))?;
-        let mut it = s.split_whitespace();
+        let mut it = s.split_ascii_whitespace();
         let mut p = [0.0; 3];
         for c in p.iter_mut() {
             let tok = it.next().ok_or_else(|| {
@@ -67,7 +67,7 @@ pub(crate) fn read(bytes: &[u8], limits: &MeshLimits) -> Result<RawMesh, MeshIoE
         let (line, s) = lines
             .next()
             .ok_or_else(|| MeshIoError::corrupt(F, None, format!("expected {nf} faces")))?;
-        let mut it = s.split_whitespace();
+        let mut it = s.split_ascii_whitespace();
         let k: usize = it.next().and_then(|t| t.parse().ok()).ok_or_else(|| {
             MeshIoError::corrupt(F, Some(line), "a face starts with its vertex count")
         })?;

@@ -100,7 +100,7 @@ fn read_ascii(bytes: &[u8], limits: &MeshLimits) -> Result<RawMesh, MeshIoError>
     };
     let mut corner: Vec<u32> = Vec::with_capacity(3);
     for (line, s) in text_lines(bytes) {
-        let mut it = s.split_whitespace();
+        let mut it = s.split_ascii_whitespace();
         match it.next() {
             Some("vertex") => {
                 let mut p = [0.0; 3];

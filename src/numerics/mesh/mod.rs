@@ -288,27 +288,32 @@ impl Topology {
             let (a, b) = (face[h % 3], face[(h + 1) % 3]);
             (a.min(b), a.max(b))
         };
+        // Each half-edge carries its larger end, so that sorting a bucket
+        // reads no face.
         let (start, mut halves) = crate::numerics::buckets::bucket(
             nv,
-            (0..3 * nf).map(|h| (ends(h).0 as usize, h as u32)),
+            (0..3 * nf).map(|h| {
+                let (near, far) = ends(h);
+                (near as usize, (far, h as u32))
+            }),
         );
         let mut opposite = vec![NONE; 3 * nf];
         let (mut boundary_edges, mut non_manifold_edges, mut misoriented_edges) = (0, 0, 0);
         let from = |h: u32| faces[h as usize / 3][h as usize % 3];
         for v in 0..nv {
             let group = &mut halves[start[v]..start[v + 1]];
-            group.sort_unstable_by_key(|&h| (ends(h as usize).1, h));
+            group.sort_unstable();
             let mut i = 0;
             while i < group.len() {
-                let far = ends(group[i] as usize).1;
+                let far = group[i].0;
                 let mut j = i + 1;
-                while j < group.len() && ends(group[j] as usize).1 == far {
+                while j < group.len() && group[j].0 == far {
                     j += 1;
                 }
                 match j - i {
                     1 => boundary_edges += 1,
                     2 => {
-                        let (h0, h1) = (group[i], group[i + 1]);
+                        let (h0, h1) = (group[i].1, group[i + 1].1);
                         opposite[h0 as usize] = h1;
                         opposite[h1 as usize] = h0;
                         if from(h0) == from(h1) {
