@@ -539,7 +539,11 @@ proptest! {
 /// of order), a vertex and a face source: the distances and labels equal
 /// those of the earlier implementation (every propagated window kept per
 /// edge and compared with, windows in exact key order), stored in
-/// `mesh_support/exact_bumpy_ico3.txt`, within 1e-12 relative.
+/// `mesh_support/exact_bumpy_ico3.txt`, within 1e-12 relative. One value
+/// there was corrected on 2026-12-05: vertex 148 (label 0, reached from
+/// vertex 3) had 1.59117142106197, 3.7e-5 too long; pygeodesic's MMP from
+/// vertex 3 alone gives 1.59111312558381468, which the propagation now
+/// finds (it lost the window carrying that path before).
 #[test]
 fn bumpy_icosphere_matches_the_exhaustive_filter() {
     let m0 = icosphere(3);

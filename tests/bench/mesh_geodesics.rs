@@ -164,8 +164,12 @@ fn main() {
             let secs = t.elapsed().as_secs_f64();
             let (mean, max) = errors(&mesh, &r.distance);
             println!(
-                "{{\"case\":\"exact\",\"vertices\":{n},\"solve_s\":{secs:.4},\"windows_per_vertex\":{:.1},\"mean_rel_err\":{mean:.3e},\"max_abs_err\":{max:.3e},\"peak_mib\":{:.1}}}",
+                "{{\"case\":\"exact\",\"vertices\":{n},\"solve_s\":{secs:.4},\"windows_per_vertex\":{:.1},\"created_per_vertex\":{:.1},\"pseudo_sources\":{},\"sector_emissions\":{},\"max_queue\":{},\"mean_rel_err\":{mean:.3e},\"max_abs_err\":{max:.3e},\"peak_mib\":{:.1}}}",
                 stats.windows_propagated as f64 / n as f64,
+                stats.windows_created as f64 / n as f64,
+                stats.pseudo_sources,
+                stats.sector_emissions,
+                stats.max_queue,
                 peak_mib()
             );
         }
