@@ -6,7 +6,7 @@
 //! cargo bench --bench mesh_geodesics -- fmm 7       # fast marching time, error
 //! cargo bench --bench mesh_geodesics -- dijkstra 7
 //! cargo bench --bench mesh_geodesics -- dump 7 /tmp/ico7.obj   # the mesh for the Python peers
-//! cargo bench --bench mesh_geodesics -- exact 6     # exact window propagation
+//! cargo bench --bench mesh_geodesics -- exact 6     # exact window propagation (exact1: one worker, exact2: two)
 //! cargo bench --bench mesh_geodesics -- heat /tmp/dragon.ply   # any mesh file (source: vertex 0)
 //! ```
 //!
@@ -148,15 +148,34 @@ fn main() {
                 peak_mib()
             );
         }
-        "exact" => {
+        "exact" | "exact1" | "exact2" => {
+            // `exact` as the library runs it (two workers from 20k vertices
+            // when the pool has two threads), `exact1` on one worker,
+            // `exact2` on two at any size.
+            let threads = match case {
+                "exact1" => 1,
+                "exact2" => 2,
+                _ => 0,
+            };
             let t = Instant::now();
-            let r = geodex::numerics::mesh::exact::exact_distance_with_stats(
-                &mesh,
-                &topo,
-                &src,
-                f64::INFINITY,
-                &control,
-            );
+            let r = if threads == 0 {
+                geodex::numerics::mesh::exact::exact_distance_with_stats(
+                    &mesh,
+                    &topo,
+                    &src,
+                    f64::INFINITY,
+                    &control,
+                )
+            } else {
+                geodex::numerics::mesh::exact::exact_distance_threads(
+                    &mesh,
+                    &topo,
+                    &src,
+                    f64::INFINITY,
+                    threads,
+                    &control,
+                )
+            };
             let Ok((r, stats)) = r else {
                 eprintln!("solve failed");
                 return;
@@ -164,7 +183,7 @@ fn main() {
             let secs = t.elapsed().as_secs_f64();
             let (mean, max) = errors(&mesh, &r.distance);
             println!(
-                "{{\"case\":\"exact\",\"vertices\":{n},\"solve_s\":{secs:.4},\"windows_per_vertex\":{:.1},\"created_per_vertex\":{:.1},\"pseudo_sources\":{},\"sector_emissions\":{},\"max_queue\":{},\"mean_rel_err\":{mean:.3e},\"max_abs_err\":{max:.3e},\"peak_mib\":{:.1}}}",
+                "{{\"case\":\"{case}\",\"vertices\":{n},\"solve_s\":{secs:.4},\"windows_per_vertex\":{:.1},\"created_per_vertex\":{:.1},\"pseudo_sources\":{},\"sector_emissions\":{},\"max_queue\":{},\"mean_rel_err\":{mean:.3e},\"max_abs_err\":{max:.3e},\"peak_mib\":{:.1}}}",
                 stats.windows_propagated as f64 / n as f64,
                 stats.windows_created as f64 / n as f64,
                 stats.pseudo_sources,

@@ -24,8 +24,8 @@
 use std::collections::HashMap;
 
 use super::{
-    barycentric_point, check_inputs, norm, sub, MeshDistance, MeshSolveError, Parent, Propagation,
-    SurfacePoint, Target, Topology, TriMesh, NONE,
+    barycentric_point, check_inputs, norm, sub, Geometry, MeshDistance, MeshSolveError, Parent,
+    Propagation, SurfacePoint, Target, Topology, TriMesh, NONE,
 };
 use crate::numerics::mesh::paths::{GeodesicPath, PathLocation, PathPoint};
 use crate::numerics::Control;
@@ -68,7 +68,8 @@ pub fn exact_paths(
                 reason,
             })?;
     }
-    let mut p = Propagation::new(mesh, topo, f64::INFINITY);
+    let geo = Geometry::new(mesh, topo);
+    let mut p = Propagation::new(&geo, f64::INFINITY, 0);
     p.parents = vec![Parent::None; mesh.num_vertices()];
     let mut face_targets: HashMap<u32, Vec<u32>> = HashMap::new();
     for t in targets {
@@ -290,7 +291,7 @@ impl Propagation<'_> {
             }
             let (f, k) = ((h / 3) as usize, (h % 3) as usize);
             let (g, kg) = ((t / 3) as usize, (t % 3) as usize);
-            let l = self.len[h as usize];
+            let l = self.len(h as usize);
             // At an end of the edge: the path passes through that vertex
             // (the ray may go on through any face around it); its own
             // record is a shortest path from there. At the vertex the walk
@@ -369,7 +370,7 @@ impl Propagation<'_> {
                     };
                     let e = if c == 0 { 2 } else { 1 };
                     let he = (3 * g + (kg + e) % 3) as u32;
-                    let le = self.len[he as usize];
+                    let le = self.len(he as usize);
                     let (e0, e1) = (corners[e], corners[(e + 1) % 3]);
                     let (ux, uy) = ((e1.0 - e0.0) / le, (e1.1 - e0.1) / le);
                     let (nx, ny) = super::to_frame(qx, qy, e0.0, e0.1, ux, uy);
@@ -386,7 +387,7 @@ impl Propagation<'_> {
                 }
             };
             let he = (3 * g + (kg + e) % 3) as u32;
-            let le = self.len[he as usize];
+            let le = self.len(he as usize);
             // Passing exactly through a vertex: the path bends there only
             // if it is a pseudo-source; go on from that vertex's record,
             // whose length is the same up to rounding.
@@ -419,7 +420,7 @@ impl Propagation<'_> {
         let a = self.mesh.position(faces[g][k]);
         let b = self.mesh.position(faces[g][(k + 1) % 3]);
         let c = self.mesh.position(faces[g][(k + 2) % 3]);
-        let l = self.len[3 * g + k];
+        let l = self.len(3 * g + k);
         let ex = sub(b, a).map(|v| v / l);
         let ac = sub(c, a);
         let along = ac[0] * ex[0] + ac[1] * ex[1] + ac[2] * ex[2];
@@ -438,7 +439,7 @@ impl Propagation<'_> {
         let faces = self.mesh.faces();
         let (f, k) = ((h / 3) as usize, (h % 3) as usize);
         let (a, b) = (faces[f][k], faces[f][(k + 1) % 3]);
-        let l = self.len[h as usize];
+        let l = self.len(h as usize);
         let t = if l > 0.0 {
             (x / l).clamp(0.0, 1.0)
         } else {

@@ -102,6 +102,22 @@
 //! several fans, and vertices of degenerate (zero-area) faces, which no
 //! window crosses.
 //!
+//! **Two workers.** From 20,000 vertices, when the solver pool has two
+//! threads, the propagation is split between two workers by a plane
+//! through the first source (see `split`): each propagates the windows
+//! entering its own faces and keeps its own vertices' distances (and emits
+//! them as pseudo-sources); a window entering the other's face, or a
+//! distance lowered for the other's vertex (with how it was reached), is
+//! sent to it in batches. Each keeps its own copy of the distances for its
+//! cuts: the other's may be late, hence larger, which only makes a cut
+//! weaker, never wrong, since exactness does not rest on the order. A
+//! worker does not run more than two mean edge lengths ahead of the other
+//! (windows far out of order are mostly cut later). The distances are the
+//! one worker's to rounding (asserted); on the sliver sphere and the
+//! icosphere of 41k vertices the solve takes 1.7x less time. On a pool
+//! whose other thread is busy the halves run one after the other, in
+//! rounds, with the same result.
+//!
 //! **Sources** at vertices are pseudo-sources at distance 0; a source
 //! inside a face sends one window across each edge of its face (a source on
 //! an edge into both faces of the edge). With several sources every window
@@ -138,10 +154,10 @@
 //! time grows like the windows (0.12 s, 0.84 s and 5.1 s on the shared VM,
 //! 5-10x faster than pygeodesic's MMP at 41k-164k).
 //! Memory: the vertex arrays, one window (40 bytes) per
-//! half-edge for the comparison filter, 40 bytes per half-edge of
-//! precomputed frames and corner angles, `O(n)`, plus the pending windows
-//! (56 bytes each, 77k at most at 164k vertices): about 1.1 kB per vertex
-//! in all (200 MiB peak at 164k vertices, mesh included).
+//! half-edge (per worker) for the comparison filter, 64 bytes per
+//! half-edge of precomputed frames (one cache line) and 16 of corner
+//! angles, `O(n)`, plus the pending windows (56 bytes each, 77k at most at
+//! 164k vertices): about 1.2 kB per vertex in all with one worker.
 //!
 //! **Robustness.** Degenerate faces are never entered; a final
 //! `O(E)` check verifies `U(v) ≤ U(u) + |uv|` on every edge and, only if
@@ -152,6 +168,8 @@
 
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering as AtomicOrdering};
+use std::sync::Mutex;
 
 mod backtrack;
 pub use backtrack::exact_paths;
@@ -173,6 +191,18 @@ const MIN_WIDTH: f64 = 1e-13;
 const RECENT: usize = 1;
 /// How many heap pops between two cancellation checks / progress reports.
 const POLL: usize = 4096;
+/// Steps between two exchanges of messages by the workers of a split
+/// propagation.
+const EXCHANGE: usize = 64;
+/// Meshes from this many vertices up are split between two workers when
+/// the pool has two threads (smaller ones take under ~0.1 s on one).
+const SPLIT_MIN_VERTICES: usize = 20_000;
+/// How long an idle worker of a split propagation waits for the other to
+/// start.
+const START_WAIT: std::time::Duration = std::time::Duration::from_millis(2);
+/// How far (in mean edge lengths) a worker of a split propagation may run
+/// ahead of the other.
+const PACE: f64 = 2.0;
 /// Angle (radians) by which the sector a saddle pseudo-source emits into is
 /// widened on each side (see [`Propagation::shadow_sector`]): far above
 /// the rounding of the arrival direction, far below the angles that matter.
@@ -356,6 +386,108 @@ impl Field {
     }
 }
 
+/// What one worker of a split propagation hands to the other.
+#[derive(Debug, Clone, Copy)]
+enum Message {
+    /// A window entering one of the other worker's faces.
+    Window(Window),
+    /// A distance lowered for one of the other worker's vertices, with how
+    /// it was reached.
+    Distance {
+        v: u32,
+        label: u32,
+        d: f64,
+        arrival: Arrival,
+        via: (u32, f64),
+    },
+}
+
+/// The two workers' mailboxes and states.
+#[derive(Default)]
+struct Mail {
+    inbox: [Mutex<Vec<Message>>; 2],
+    /// Whether each worker is working (not idle, not stopped).
+    busy: [AtomicBool; 2],
+    /// Set by a worker that failed (cancelled, or out of steps).
+    stop: AtomicBool,
+    /// Vertices each worker has reached (for progress).
+    reached: [AtomicUsize; 2],
+    /// Each worker's front (the `f64` bits of its next key).
+    front: [AtomicU64; 2],
+    /// Whether each worker has started (in this round).
+    started: [AtomicBool; 2],
+}
+
+impl Mail {
+    fn is_empty(&self) -> bool {
+        self.inbox
+            .iter()
+            .all(|i| i.lock().unwrap_or_else(|e| e.into_inner()).is_empty())
+    }
+}
+
+/// How a propagation is split between two workers: by a plane through the
+/// first source, so that the front runs through both halves at once,
+/// among the 13 directions of the `{-1, 0, 1}³` lattice the one that
+/// halves the work most evenly (a source at the end of a long part still
+/// gets a plane along it), each face weighing its distance from the
+/// source. Faces go by their centroid, vertices by their position. `None`
+/// when no plane gives each half at least a third of the work.
+///
+/// On the sliver sphere and the icosphere (41k vertices) the two halves
+/// take 1.7x less time than one worker, with the same windows; on a
+/// decimated dragon (51k), whose fronts run through the halves at
+/// different speeds, hardly less than one (see `tests/bench/README.md`).
+fn split(mesh: &TriMesh, sources: &[SurfacePoint]) -> Option<Owners> {
+    let origin = sources.first()?.position(mesh);
+    let mut normals = Vec::with_capacity(13);
+    for a in -1i32..=1 {
+        for b in -1i32..=1 {
+            for c in -1i32..=1 {
+                // One of each opposite pair: the first non-zero is positive.
+                let first = [a, b, c].into_iter().find(|&x| x != 0);
+                if first == Some(1) {
+                    normals.push([a, b, c].map(f64::from));
+                }
+            }
+        }
+    }
+    let faces = mesh.faces();
+    let offsets: Vec<[f64; 3]> = faces
+        .iter()
+        .map(|f| {
+            let p = f.map(|v| mesh.position(v));
+            [0, 1, 2].map(|c| (p[0][c] + p[1][c] + p[2][c]) / 3.0 - origin[c])
+        })
+        .collect();
+    let side = |q: [f64; 3], n: [f64; 3]| u8::from(q[0] * n[0] + q[1] * n[1] + q[2] * n[2] > 0.0);
+    // A face's work grows with its distance from the source (the rays
+    // crossing an edge are split by the vertices between it and the
+    // source): weigh faces by their distance.
+    let weight = |q: &[f64; 3]| norm(*q);
+    let total: f64 = offsets.iter().map(weight).sum();
+    let (best, ones) = normals
+        .iter()
+        .map(|&n| {
+            let ones: f64 = offsets
+                .iter()
+                .filter(|&&q| side(q, n) == 1)
+                .map(weight)
+                .sum();
+            (n, ones)
+        })
+        .max_by(|a, b| a.1.min(total - a.1).total_cmp(&b.1.min(total - b.1)))?;
+    if total.is_nan() || total <= 0.0 || 3.0 * ones.min(total - ones) < total {
+        return None;
+    }
+    Some(Owners {
+        face: offsets.iter().map(|&q| side(q, best)).collect(),
+        vertex: (0..mesh.num_vertices() as u32)
+            .map(|v| side(sub(mesh.position(v), origin), best))
+            .collect(),
+    })
+}
+
 /// A pseudo-source whose distance was lowered to `key`.
 #[derive(Debug, Clone, Copy)]
 struct VertexEvent {
@@ -442,10 +574,94 @@ pub fn exact_distance_with_stats(
             reason: format!("must be >= 0, got {max_distance}"),
         });
     }
-    let mut p = Propagation::new(mesh, topo, max_distance);
-    p.seed(sources);
-    p.run(control)?;
-    Ok(p.finish())
+    let threads = if mesh.num_vertices() >= SPLIT_MIN_VERTICES {
+        rayon::current_num_threads()
+    } else {
+        1
+    };
+    propagate_with(mesh, topo, sources, max_distance, threads, control)
+}
+
+/// [`exact_distance_with_stats`] on `threads` workers (at most 2: with 2
+/// and a mesh that splits, see [`split`]); the distances agree with one
+/// worker's to rounding.
+pub fn exact_distance_threads(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    max_distance: f64,
+    threads: usize,
+    control: &Control<'_>,
+) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
+    check_inputs(mesh, topo, sources)?;
+    if max_distance.is_nan() || max_distance < 0.0 {
+        return Err(MeshSolveError::InvalidOption {
+            option: "max_distance",
+            reason: format!("must be >= 0, got {max_distance}"),
+        });
+    }
+    propagate_with(mesh, topo, sources, max_distance, threads, control)
+}
+
+fn propagate_with(
+    mesh: &TriMesh,
+    topo: &Topology,
+    sources: &[SurfacePoint],
+    max_distance: f64,
+    threads: usize,
+    control: &Control<'_>,
+) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
+    let mut geo = Geometry::new(mesh, topo);
+    if threads >= 2 {
+        geo.owner = split(mesh, sources);
+    }
+    if geo.owner.is_none() {
+        let mut p = Propagation::new(&geo, max_distance, 0);
+        p.seed(sources);
+        p.run(control)?;
+        return Ok(p.finish());
+    }
+    let mut p0 = Propagation::new(&geo, max_distance, 0);
+    let mut p1 = Propagation::new(&geo, max_distance, 1);
+    p0.seed(sources);
+    p1.seed(sources);
+    let mail = Mail::default();
+    // Rounds: a worker stops when it is idle and the other is not running
+    // (or has not started: the pool may run the two halves one after the
+    // other), so messages can be left for another round.
+    loop {
+        for started in &mail.started {
+            started.store(false, AtomicOrdering::SeqCst);
+        }
+        let (r0, r1) = rayon::join(
+            || p0.run_shared(control, &mail),
+            || p1.run_shared(control, &mail),
+        );
+        r0?;
+        r1?;
+        if mail.is_empty() {
+            break;
+        }
+    }
+    // Every lowered distance was sent to its vertex's owner: the owner's
+    // values are the smallest.
+    let owners = geo.owner.as_ref().map(|o| &o.vertex);
+    if let Some(owner) = owners {
+        for (v, &o) in owner.iter().enumerate() {
+            if o == 1 {
+                p0.dist[v] = p1.dist[v];
+                p0.label[v] = p1.label[v];
+            }
+        }
+    }
+    let s1 = p1.stats;
+    let st = &mut p0.stats;
+    st.windows_created += s1.windows_created;
+    st.windows_propagated += s1.windows_propagated;
+    st.pseudo_sources += s1.pseudo_sources;
+    st.sector_emissions += s1.sector_emissions;
+    st.max_queue = st.max_queue.max(s1.max_queue);
+    Ok(p0.finish())
 }
 
 /// The checks shared by [`exact_distance_with_stats`] and [`exact_paths`]:
@@ -462,6 +678,17 @@ fn check_inputs(
     for (index, s) in sources.iter().enumerate() {
         s.validate(mesh)
             .map_err(|reason| MeshSolveError::InvalidSource { index, reason })?;
+    }
+    if 3 * mesh.num_faces() >= REVERSED as usize {
+        return Err(MeshSolveError::InvalidOption {
+            option: "mesh",
+            reason: format!(
+                "{} faces are more than the exact method indexes ({}); use the method \
+                 fast_marching or heat",
+                mesh.num_faces(),
+                REVERSED / 3
+            ),
+        });
     }
     if topo.opposite.len() != 3 * mesh.num_faces() || topo.component.len() != mesh.num_vertices() {
         return Err(MeshSolveError::InvalidOption {
@@ -489,8 +716,12 @@ fn step_budget(vertices: usize, faces: usize) -> usize {
 }
 
 /// Frame of edge `k` of a face: its length `l`, and the third vertex at
-/// `(cx, cy)`, `cy >= 0`.
+/// `(cx, cy)`, `cy >= 0`, with what a window crossing the edge needs to
+/// make its children, in one cache line per half-edge (a window's
+/// propagation reads one record instead of six scattered arrays: 8 % less
+/// time end to end on the sliver sphere).
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
 struct Frame {
     l: f64,
     cx: f64,
@@ -502,7 +733,16 @@ struct Frame {
     /// `1 / lbc` and `1 / lca` (0 for a zero length), precomputed.
     inv_lbc: f64,
     inv_lca: f64,
+    /// Where windows leaving through edges `k + 1` and `k + 2` go: the
+    /// half-edge across, in the face beyond, with [`REVERSED`] set when it
+    /// runs the other way (the usual case), or [`NONE`] when no window
+    /// goes there (a boundary, non-manifold or degenerate neighbour).
+    across: [u32; 2],
 }
+
+/// The bit of [`Frame::across`] saying that the half-edge across runs the
+/// other way.
+const REVERSED: u32 = 1 << 31;
 
 /// How a vertex (or a target point) got its distance, for backtracking a
 /// path (kept only by [`exact_paths`]).
@@ -543,20 +783,60 @@ struct Target {
     parent: Parent,
 }
 
+/// What every propagation over one mesh shares, read only: the frames,
+/// the pseudo-sources, the fans of the saddles, and (for a propagation
+/// split between two workers) who owns which face and vertex.
+struct Geometry<'a> {
+    mesh: &'a TriMesh,
+    topo: &'a Topology,
+    /// Per half-edge `3 f + k`, its [`Frame`] (length, the face's third
+    /// vertex, the lengths of the two other edges and where windows
+    /// leaving through them go), computed once instead of a division and a
+    /// square root per window.
+    frames: Vec<Frame>,
+    degenerate: Vec<bool>,
+    pseudo: Vec<bool>,
+    /// Per corner `3 f + j` (the corner of face `f` at its vertex `j`), the
+    /// corner's angle.
+    corner_angle: Vec<f64>,
+    /// Per corner, the angular position around its vertex where the corner
+    /// starts (at the edge towards vertex `j + 1`; counterclockwise, the
+    /// faces' orientation), for vertices whose fan is walked once around
+    /// (see [`fans`]); NaN elsewhere.
+    fan_start: Vec<f64>,
+    /// Per vertex, its total angle `Θ` when its fan was walked (saddle
+    /// interior vertices only), else NaN: the vertices whose emission is
+    /// restricted to the shadow sector.
+    fan_total: Vec<f64>,
+    /// Which worker owns each face and vertex when the propagation is split
+    /// (see [`split`]); `None` for one worker.
+    owner: Option<Owners>,
+    /// The mean edge length.
+    mean_edge: f64,
+}
+
+/// The halves of a mesh split between two workers: a window belongs to
+/// the owner of the face it enters, a vertex's distance to its owner.
+struct Owners {
+    face: Vec<u8>,
+    vertex: Vec<u8>,
+}
+
 struct Propagation<'a> {
+    geo: &'a Geometry<'a>,
     mesh: &'a TriMesh,
     topo: &'a Topology,
     max_distance: f64,
-    /// Length of every half-edge.
-    len: Vec<f64>,
-    /// `1 / len` (0 for a zero length).
-    inv_len: Vec<f64>,
-    /// Per half-edge `k` of face `f`, the face's third vertex `(cx, cy)`,
-    /// `cy >= 0`, in the frame of the half-edge (see [`Frame`]); computed
-    /// once instead of a division and a square root per window.
-    corner: Vec<[f64; 2]>,
-    degenerate: Vec<bool>,
-    pseudo: Vec<bool>,
+    /// This worker's index (0 with one worker).
+    me: u8,
+    /// While seeding, every worker makes the sources' windows and
+    /// distances itself, and keeps only its own.
+    seeding: bool,
+    /// Messages for the other worker, sent in batches.
+    out: Vec<Message>,
+    /// Vertices of the other worker whose distance this one lowered while
+    /// processing the current window or vertex.
+    dirty: Vec<u32>,
     dist: Vec<f64>,
     label: Vec<u32>,
     emitted: Vec<f64>,
@@ -564,18 +844,6 @@ struct Propagation<'a> {
     /// did (see [`Arrival`]): a saddle pseudo-source emits only into the
     /// directions a shortest path can continue in.
     arrival: Vec<Arrival>,
-    /// Per corner `3 f + j` (the corner of face `f` at its vertex `j`), the
-    /// corner's angle.
-    corner_angle: Vec<f64>,
-    /// Per corner, the angular position around its vertex where the corner
-    /// starts (at the edge towards vertex `j + 1`; counterclockwise, the
-    /// faces' orientation), for vertices whose fan is walked once around
-    /// (see [`Propagation::fans`]); NaN elsewhere.
-    fan_start: Vec<f64>,
-    /// Per vertex, its total angle `Θ` when its fan was walked (saddle
-    /// interior vertices only), else NaN: the vertices whose emission is
-    /// restricted to the shadow sector.
-    fan_total: Vec<f64>,
     /// Whether saddles emit into their shadow sector only (always, but for
     /// the test that compares with emitting everywhere).
     sectors: bool,
@@ -592,6 +860,8 @@ struct Propagation<'a> {
     recent: Vec<[Field; RECENT]>,
     reached: usize,
     reachable: usize,
+    /// Steps taken by [`Propagation::run_shared`], over all its rounds.
+    pops: usize,
     stats: ExactStats,
     /// Per vertex, how it got its distance (empty unless paths are wanted).
     parents: Vec<Parent>,
@@ -600,8 +870,8 @@ struct Propagation<'a> {
     face_targets: HashMap<u32, Vec<u32>>,
 }
 
-impl<'a> Propagation<'a> {
-    fn new(mesh: &'a TriMesh, topo: &'a Topology, max_distance: f64) -> Self {
+impl<'a> Geometry<'a> {
+    fn new(mesh: &'a TriMesh, topo: &'a Topology) -> Self {
         let nf = mesh.num_faces();
         let nv = mesh.num_vertices();
         let faces = mesh.faces();
@@ -657,44 +927,81 @@ impl<'a> Propagation<'a> {
             }
         }
         let (fan_start, fan_total) = fans(faces, topo, &corner_angle, &saddle);
-        let inv_len = len
-            .iter()
-            .map(|&l| if l > 0.0 { 1.0 / l } else { 0.0 })
-            .collect();
-        let corner = (0..3 * nf)
+        let inv = |l: f64| if l > 0.0 { 1.0 / l } else { 0.0 };
+        // Where a window leaving face f through its edge k goes.
+        let across = |f: usize, k: usize| {
+            let h = topo.opposite[3 * f + k];
+            if h == NONE || degenerate[h as usize / 3] {
+                return NONE;
+            }
+            let reversed = faces[h as usize / 3][h as usize % 3] == faces[f][(k + 1) % 3];
+            if reversed {
+                h | REVERSED
+            } else {
+                h
+            }
+        };
+        let frames = (0..3 * nf)
             .map(|h| {
                 let (f, k) = (h / 3, h % 3);
+                let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
                 let l = len[h];
-                let lbc = len[3 * f + (k + 1) % 3];
-                let lca = len[3 * f + (k + 2) % 3];
+                let lbc = len[3 * f + k1];
+                let lca = len[3 * f + k2];
                 let cx = (lca * lca + l * l - lbc * lbc) / (2.0 * l);
                 let cy = (lca * lca - cx * cx).max(0.0).sqrt();
-                [cx, cy]
+                Frame {
+                    l,
+                    cx,
+                    cy,
+                    lbc,
+                    lca,
+                    inv_lbc: inv(lbc),
+                    inv_lca: inv(lca),
+                    across: [across(f, k1), across(f, k2)],
+                }
             })
             .collect();
-        Self {
+        Geometry {
             mesh,
             topo,
-            max_distance,
-            len,
-            inv_len,
-            corner,
+            frames,
             degenerate,
             pseudo,
+            corner_angle,
+            fan_start,
+            fan_total,
+            owner: None,
+            mean_edge: len.iter().sum::<f64>() / len.len().max(1) as f64,
+        }
+    }
+}
+
+impl<'a> Propagation<'a> {
+    fn new(geo: &'a Geometry<'a>, max_distance: f64, me: u8) -> Self {
+        let nv = geo.mesh.num_vertices();
+        let nf = geo.mesh.num_faces();
+        Self {
+            geo,
+            mesh: geo.mesh,
+            topo: geo.topo,
+            max_distance,
+            me,
+            seeding: false,
+            out: Vec::new(),
+            dirty: Vec::new(),
             dist: vec![f64::INFINITY; nv],
             label: vec![NONE; nv],
             emitted: vec![f64::INFINITY; nv],
             via: vec![(NONE, 0.0); nv],
             arrival: vec![Arrival::NONE; nv],
-            corner_angle,
-            fan_start,
-            fan_total,
             sectors: true,
             windows: RadixQueue::new(),
             vertices: BinaryHeap::new(),
             recent: vec![[Field::EMPTY; RECENT]; 3 * nf],
             reached: 0,
             reachable: 0,
+            pops: 0,
             stats: ExactStats::default(),
             parents: Vec::new(),
             targets: Vec::new(),
@@ -704,18 +1011,38 @@ impl<'a> Propagation<'a> {
 
     #[inline(always)]
     fn frame(&self, f: usize, k: usize) -> Frame {
-        let h = 3 * f + k;
-        let (k1, k2) = (3 * f + (k + 1) % 3, 3 * f + (k + 2) % 3);
-        let [cx, cy] = self.corner[h];
-        Frame {
-            l: self.len[h],
-            cx,
-            cy,
-            lbc: self.len[k1],
-            lca: self.len[k2],
-            inv_lbc: self.inv_len[k1],
-            inv_lca: self.inv_len[k2],
+        self.geo.frames[3 * f + k]
+    }
+
+    /// Length of half-edge `h`.
+    #[inline]
+    fn len(&self, h: usize) -> f64 {
+        self.geo.frames[h].l
+    }
+
+    /// Whether this worker propagates the windows entering face `f`.
+    #[inline(always)]
+    fn owns_face(&self, f: usize) -> bool {
+        match &self.geo.owner {
+            None => true,
+            Some(o) => o.face[f] == self.me,
         }
+    }
+
+    /// Whether this worker keeps vertex `v`'s distance (and emits it).
+    #[inline(always)]
+    fn owns_vertex(&self, v: usize) -> bool {
+        match &self.geo.owner {
+            None => true,
+            Some(o) => o.vertex[v] == self.me,
+        }
+    }
+
+    /// Where a window leaving face `f` through its edge `k` goes (see
+    /// [`Frame::across`]).
+    #[inline]
+    fn across(&self, f: usize, k: usize) -> u32 {
+        self.geo.frames[3 * f + (k + 2) % 3].across[0]
     }
 
     #[inline]
@@ -730,13 +1057,17 @@ impl<'a> Propagation<'a> {
         if d < self.dist[vi] {
             self.via[vi] = (NONE, 0.0);
             self.arrival[vi] = Arrival::NONE;
-            if self.dist[vi] == f64::INFINITY {
+            if self.dist[vi] == f64::INFINITY && self.owns_vertex(vi) {
                 self.reached += 1;
             }
             self.dist[vi] = d;
             self.label[vi] = label;
-            if self.pseudo[vi] && d <= self.max_distance {
-                self.vertices.push(VertexEvent { key: d, v });
+            if self.owns_vertex(vi) {
+                if self.geo.pseudo[vi] && d <= self.max_distance {
+                    self.vertices.push(VertexEvent { key: d, v });
+                }
+            } else if !self.seeding {
+                self.dirty.push(v);
             }
             true
         } else {
@@ -745,6 +1076,7 @@ impl<'a> Propagation<'a> {
     }
 
     fn seed(&mut self, sources: &[SurfacePoint]) {
+        self.seeding = true;
         let mut has_source = vec![false; self.topo.components];
         for (i, s) in sources.iter().enumerate() {
             let label = i as u32;
@@ -775,12 +1107,18 @@ impl<'a> Propagation<'a> {
             .filter(|&&c| has_source[c as usize])
             .count()
             .max(1);
+        self.seeding = false;
+        self.dirty.clear();
     }
 
     fn seed_vertex(&mut self, v: u32, label: u32) {
-        self.pseudo[v as usize] = true;
         if self.dist[v as usize] > 0.0 && self.update(v, 0.0, label) {
             self.set_parent(v, Parent::Root);
+            // A source emits like a pseudo-source (`update` queued it if
+            // it is one).
+            if !self.geo.pseudo[v as usize] && self.owns_vertex(v as usize) {
+                self.vertices.push(VertexEvent { key: 0.0, v });
+            }
         }
     }
 
@@ -839,7 +1177,7 @@ impl<'a> Propagation<'a> {
                 (norm(sub(q, pos)), Parent::SourcePoint(label))
             });
         }
-        if self.degenerate[f] {
+        if self.geo.degenerate[f] {
             return;
         }
         for k in 0..3 {
@@ -849,7 +1187,12 @@ impl<'a> Propagation<'a> {
             let px = bb * fr.l + bc * fr.cx;
             let py = bc * fr.cy;
             if py > DEGENERATE * fr.l {
-                self.push_child(f, k, 0.0, fr.l, px, py, 0.0, label);
+                let ends = (
+                    self.dist[face[k] as usize],
+                    self.dist[face[(k + 1) % 3] as usize],
+                );
+                let across = self.across(f, k);
+                self.push_child(across, fr.l, ends, 0.0, fr.l, px, py, 0.0, label);
             } else if spread {
                 // On edge k: the neighbouring face sees the point too.
                 let h = self.topo.opposite[3 * f + k];
@@ -901,7 +1244,7 @@ impl<'a> Propagation<'a> {
                         self.arrival[u as usize] = if i == (j + 1) % 3 {
                             Arrival::at(3 * f + j, ArrivalAt::End, 0.0, 0.0)
                         } else {
-                            Arrival::at(3 * f + i, ArrivalAt::Origin, self.len[3 * f + i], 0.0)
+                            Arrival::at(3 * f + i, ArrivalAt::Origin, self.len(3 * f + i), 0.0)
                         };
                     }
                 }
@@ -913,18 +1256,26 @@ impl<'a> Propagation<'a> {
                     (sigma + norm(sub(q, pv)), Parent::Vertex(v))
                 });
             }
-            if self.degenerate[f] {
+            if self.geo.degenerate[f] {
                 continue;
             }
             let k = (j + 1) % 3;
             let fr = self.frame(f, k);
+            let across = self.across(f, k);
+            let ends = (
+                self.dist[face[k] as usize],
+                self.dist[face[(k + 1) % 3] as usize],
+            );
             let Some((lo, hi, total)) = sector else {
-                self.push_child(f, k, 0.0, fr.l, fr.cx, fr.cy, sigma, label);
+                self.push_child(across, fr.l, ends, 0.0, fr.l, fr.cx, fr.cy, sigma, label);
                 continue;
             };
             // The parts of the corner [s, s + θ] inside the sector (or one
             // turn before or after it), as rays from v across edge k.
-            let (start, theta) = (self.fan_start[3 * f + j], self.corner_angle[3 * f + j]);
+            let (start, theta) = (
+                self.geo.fan_start[3 * f + j],
+                self.geo.corner_angle[3 * f + j],
+            );
             for turn in [-total, 0.0, total] {
                 let t0 = (lo + turn - start).max(0.0);
                 let t1 = (hi + turn - start).min(theta);
@@ -932,7 +1283,7 @@ impl<'a> Propagation<'a> {
                     let x0 = corner_ray_hit(fr, t0, theta);
                     let x1 = corner_ray_hit(fr, t1, theta);
                     if x1 > x0 {
-                        self.push_child(f, k, x0, x1, fr.cx, fr.cy, sigma, label);
+                        self.push_child(across, fr.l, ends, x0, x1, fr.cx, fr.cy, sigma, label);
                     }
                 }
             }
@@ -957,31 +1308,30 @@ impl<'a> Propagation<'a> {
     /// otherwise (sources, bent paths, boundary and non-manifold vertices)
     /// emit in every direction.
     fn shadow_sector(&self, v: u32) -> Option<(f64, f64, f64)> {
-        let total = self.fan_total[v as usize];
+        let total = self.geo.fan_total[v as usize];
         let a = self.arrival[v as usize];
         if !self.sectors || total.is_nan() || a.h == NONE {
             return None;
         }
         let h = a.h as usize;
         let (f, k) = (h / 3, h % 3);
-        let [cx, cy] = self.corner[h];
-        let l = self.len[h];
+        let Frame { l, cx, cy, .. } = self.geo.frames[h];
         let (x, y) = (a.x, a.y);
         let p = match a.at {
             ArrivalAt::Origin => {
                 // Clockwise from the corner's first edge a → b.
-                self.fan_start[h] - (-y).atan2(x)
+                self.geo.fan_start[h] - (-y).atan2(x)
             }
             ArrivalAt::End => {
                 // Counterclockwise past the corner's last edge b → a.
                 let c = 3 * f + (k + 1) % 3;
-                self.fan_start[c] + self.corner_angle[c] + (-y).atan2(l - x)
+                self.geo.fan_start[c] + self.geo.corner_angle[c] + (-y).atan2(l - x)
             }
             ArrivalAt::Third => {
                 // Inside the corner, from its first edge c → a.
                 let c = 3 * f + (k + 2) % 3;
                 let (bx, by) = (x - cx, y - cy);
-                self.fan_start[c] + (cy * bx - cx * by).atan2(-cx * bx - cy * by)
+                self.geo.fan_start[c] + (cy * bx - cx * by).atan2(-cx * bx - cy * by)
             }
         };
         if !p.is_finite() {
@@ -992,14 +1342,17 @@ impl<'a> Propagation<'a> {
         Some((p + pi - SECTOR_SLACK, p + total - pi + SECTOR_SLACK, total))
     }
 
-    /// A window on edge `k` of face `f`, in that edge's frame (source on the
-    /// side of `f`, `sy >= 0`), handed to the face across the edge.
+    /// A window on edge `k` of face `f` (of length `l`, its ends at
+    /// distances `ends`), in that edge's frame (source on the side of `f`,
+    /// `sy >= 0`), handed to the face across the edge (`across`, see
+    /// [`Frame::across`]).
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn push_child(
         &mut self,
-        f: usize,
-        k: usize,
+        across: u32,
+        l: f64,
+        ends: (f64, f64),
         x0: f64,
         x1: f64,
         sx: f64,
@@ -1007,20 +1360,14 @@ impl<'a> Propagation<'a> {
         sigma: f64,
         label: u32,
     ) {
-        let h = self.topo.opposite[3 * f + k];
-        if h == NONE {
+        if across == NONE {
             return;
         }
-        let g = h as usize / 3;
-        if self.degenerate[g] {
-            return;
-        }
-        let l = self.len[3 * f + k];
-        let reversed = self.vertex(g, h as usize % 3) == self.vertex(f, k + 1);
-        let (mut b0, mut b1, sx) = if reversed {
-            (l - x1, l - x0, l - sx)
+        let h = across & !REVERSED;
+        let (mut b0, mut b1, sx, up, uq) = if across & REVERSED != 0 {
+            (l - x1, l - x0, l - sx, ends.1, ends.0)
         } else {
-            (x0, x1, sx)
+            (x0, x1, sx, ends.0, ends.1)
         };
         b0 = b0.max(0.0);
         b1 = b1.min(l);
@@ -1034,7 +1381,7 @@ impl<'a> Propagation<'a> {
             h,
             label,
         };
-        if !self.trim(&mut w, l, None, false) {
+        if !self.trim(&mut w, l, None, false, (up, uq)) {
             return;
         }
         // The nearest point of the interval to the source image: its foot
@@ -1045,6 +1392,14 @@ impl<'a> Propagation<'a> {
             sigma + len2(w.sx.clamp(w.b0, w.b1) - w.sx, w.sy)
         };
         if w.key > self.max_distance {
+            return;
+        }
+        if !self.owns_face(h as usize / 3) {
+            // The other worker's face (which makes its own while seeding).
+            if !self.seeding {
+                self.stats.windows_created += 1;
+                self.out.push(Message::Window(w));
+            }
             return;
         }
         self.stats.windows_created += 1;
@@ -1060,17 +1415,21 @@ impl<'a> Propagation<'a> {
     /// false when nothing is left.
     ///
     /// `ends`, when known, are `|I − (b0, 0)|` and `|I − (b1, 0)|` (the
-    /// window's distances at its ends less `σ`).
+    /// window's distances at its ends less `σ`); `(up, uq)` are the
+    /// distances of the edge's origin and end.
     #[inline]
-    fn trim(&self, w: &mut Window, l: f64, ends: Option<(f64, f64)>, recent: bool) -> bool {
+    fn trim(
+        &self,
+        w: &mut Window,
+        l: f64,
+        ends: Option<(f64, f64)>,
+        recent: bool,
+        (up, uq): (f64, f64),
+    ) -> bool {
         let wide = w.b1 - w.b0 > MIN_WIDTH * l;
         if !wide {
             return false;
         }
-        let f = w.h as usize / 3;
-        let k = w.h as usize % 3;
-        let up = self.dist[self.vertex(f, k) as usize];
-        let uq = self.dist[self.vertex(f, k + 1) as usize];
         let (sx, sy) = (w.sx, w.sy);
         // e(x) = d_w(x) − σ at the two ends, kept up to date as they move.
         let (mut e0, e1) = match ends {
@@ -1180,7 +1539,8 @@ impl<'a> Propagation<'a> {
                 },
             );
         }
-        if !self.trim(&mut w, fr.l, Some((e0, e1)), true) {
+        let ends = (self.dist[a as usize], self.dist[b as usize]);
+        if !self.trim(&mut w, fr.l, Some((e0, e1)), true, ends) {
             return;
         }
         if !self.face_targets.is_empty() {
@@ -1229,6 +1589,11 @@ impl<'a> Propagation<'a> {
                 },
             );
         }
+        let (ua, ub, uc) = (
+            self.dist[a as usize],
+            self.dist[b as usize],
+            self.dist[c as usize],
+        );
         let mut left = (b0, xc.min(b1));
         let mut right = (xc.max(b0), b1);
         if improved && xp == xc {
@@ -1262,8 +1627,9 @@ impl<'a> Propagation<'a> {
             let s_start = ray_hit(sx, sy, left.0, ox, oy, dx, dy, fr.lca);
             let (nx, ny) = to_frame(sx, sy, ox, oy, dx, dy);
             self.push_child(
-                f,
-                (k + 2) % 3,
+                fr.across[1],
+                fr.lca,
+                (uc, ua),
                 s_end.min(s_start),
                 s_end.max(s_start),
                 nx,
@@ -1284,8 +1650,9 @@ impl<'a> Propagation<'a> {
             let s_end = ray_hit(sx, sy, right.1, ox, oy, dx, dy, fr.lbc);
             let (nx, ny) = to_frame(sx, sy, ox, oy, dx, dy);
             self.push_child(
-                f,
-                (k + 1) % 3,
+                fr.across[0],
+                fr.lbc,
+                (ub, uc),
                 s_end.min(s_start),
                 s_end.max(s_start),
                 nx,
@@ -1296,44 +1663,57 @@ impl<'a> Propagation<'a> {
         }
     }
 
+    /// Processes the nearest pending window or pseudo-source; false when
+    /// nothing is pending.
+    #[inline]
+    fn step(&mut self) -> bool {
+        let wk = self.windows.peek_key();
+        let vk = self.vertices.peek().map(|e| e.key);
+        let take_vertex = match (wk, vk) {
+            (None, None) => return false,
+            (Some(_), None) => false,
+            (None, Some(_)) => true,
+            (Some(a), Some(b)) => b <= a,
+        };
+        if take_vertex {
+            if let Some(e) = self.vertices.pop() {
+                let vi = e.v as usize;
+                // Stale, or already emitted at this distance.
+                if e.key <= self.dist[vi] && e.key < self.emitted[vi] {
+                    self.emitted[vi] = e.key;
+                    self.emit(e.v);
+                }
+            }
+        } else if let Some(w) = self.windows.pop() {
+            self.propagate(w);
+        }
+        true
+    }
+
+    /// The checks made every [`POLL`] steps: cancellation and the step
+    /// budget.
+    fn poll(&self, pops: usize, control: &Control<'_>) -> Result<(), MeshSolveError> {
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        if pops > step_budget(self.mesh.num_vertices(), self.mesh.num_faces()) {
+            return Err(MeshSolveError::Numerical(format!(
+                "the exact method's window propagation took {pops} steps without \
+                 settling, far beyond what a mesh of {} vertices needs (its lengths \
+                 span too many orders of magnitude, or its faces are degenerate); use \
+                 the method fast_marching or heat",
+                self.mesh.num_vertices()
+            )));
+        }
+        Ok(())
+    }
+
     fn run(&mut self, control: &Control<'_>) -> Result<(), MeshSolveError> {
         let mut pops = 0usize;
-        let budget = step_budget(self.mesh.num_vertices(), self.mesh.num_faces());
-        loop {
-            let wk = self.windows.peek_key();
-            let vk = self.vertices.peek().map(|e| e.key);
-            let take_vertex = match (wk, vk) {
-                (None, None) => break,
-                (Some(_), None) => false,
-                (None, Some(_)) => true,
-                (Some(a), Some(b)) => b <= a,
-            };
-            if take_vertex {
-                if let Some(e) = self.vertices.pop() {
-                    let vi = e.v as usize;
-                    // Stale, or already emitted at this distance.
-                    if e.key <= self.dist[vi] && e.key < self.emitted[vi] {
-                        self.emitted[vi] = e.key;
-                        self.emit(e.v);
-                    }
-                }
-            } else if let Some(w) = self.windows.pop() {
-                self.propagate(w);
-            }
+        while self.step() {
             pops += 1;
             if pops.is_multiple_of(POLL) {
-                if control.is_cancelled() {
-                    return Err(MeshSolveError::Cancelled);
-                }
-                if pops > budget {
-                    return Err(MeshSolveError::Numerical(format!(
-                        "the exact method's window propagation took {pops} steps without \
-                         settling, far beyond what a mesh of {} vertices needs (its lengths \
-                         span too many orders of magnitude, or its faces are degenerate); use \
-                         the method fast_marching or heat",
-                        self.mesh.num_vertices()
-                    )));
-                }
+                self.poll(pops, control)?;
                 control.report(self.reached as f64 / self.reachable as f64);
             }
         }
@@ -1341,6 +1721,174 @@ impl<'a> Propagation<'a> {
             return Err(MeshSolveError::Cancelled);
         }
         Ok(())
+    }
+
+    /// Sends the lowered distances of the other worker's vertices.
+    #[inline]
+    fn flush_dirty(&mut self) {
+        for v in self.dirty.drain(..) {
+            let vi = v as usize;
+            self.out.push(Message::Distance {
+                v,
+                label: self.label[vi],
+                d: self.dist[vi],
+                arrival: self.arrival[vi],
+                via: self.via[vi],
+            });
+        }
+    }
+
+    /// Hands the batch of messages to the other worker.
+    fn send(&mut self, mail: &Mail) {
+        if !self.out.is_empty() {
+            let other = 1 - self.me as usize;
+            let mut inbox = mail.inbox[other].lock().unwrap_or_else(|e| e.into_inner());
+            inbox.append(&mut self.out);
+        }
+    }
+
+    /// Takes this worker's messages: windows into its queue, distances of
+    /// its vertices (queued as pseudo-sources where they are). False when
+    /// there were none.
+    fn receive(&mut self, mail: &Mail, batch: &mut Vec<Message>) -> bool {
+        {
+            let mut inbox = mail.inbox[self.me as usize]
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            if inbox.is_empty() {
+                return false;
+            }
+            std::mem::swap(&mut *inbox, batch);
+        }
+        for m in batch.drain(..) {
+            match m {
+                Message::Window(w) => {
+                    self.windows.push(w);
+                    self.stats.max_queue = self.stats.max_queue.max(self.windows.len);
+                }
+                Message::Distance {
+                    v,
+                    label,
+                    d,
+                    arrival,
+                    via,
+                } => {
+                    if self.update(v, d, label) {
+                        self.arrival[v as usize] = arrival;
+                        self.via[v as usize] = via;
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// The key of the next window or pseudo-source.
+    fn front(&mut self) -> f64 {
+        let w = self.windows.peek_key().unwrap_or(f64::INFINITY);
+        let v = self.vertices.peek().map_or(f64::INFINITY, |e| e.key);
+        w.min(v)
+    }
+
+    /// Publishes this worker's front and, while it runs more than
+    /// [`PACE`] mean edge lengths ahead of the busy other worker, waits for
+    /// it (taking its messages): windows processed far out of order are
+    /// mostly cut later by the other's, so running ahead costs windows.
+    fn keep_pace(&mut self, mail: &Mail, batch: &mut Vec<Message>) {
+        let (me, other) = (self.me as usize, 1 - self.me as usize);
+        let slack = PACE * self.geo.mean_edge;
+        loop {
+            let front = self.front();
+            mail.front[me].store(front.to_bits(), AtomicOrdering::Relaxed);
+            let theirs = f64::from_bits(mail.front[other].load(AtomicOrdering::Relaxed));
+            // Nothing pending here (both workers could otherwise wait for
+            // each other), or no usable slack: no waiting.
+            if !front.is_finite()
+                || !slack.is_finite()
+                || front <= theirs + slack
+                || !mail.busy[other].load(AtomicOrdering::SeqCst)
+                || mail.stop.load(AtomicOrdering::Relaxed)
+            {
+                return;
+            }
+            self.send(mail);
+            if !self.receive(mail, batch) {
+                std::thread::yield_now();
+            }
+        }
+    }
+
+    /// This worker's part of a split propagation (see [`split`]): its own
+    /// windows and pseudo-sources, exchanging messages with the other
+    /// worker, until both are idle, or it is idle and the other is not
+    /// running (which may leave messages for another round).
+    fn run_shared(&mut self, control: &Control<'_>, mail: &Mail) -> Result<(), MeshSolveError> {
+        let (me, other) = (self.me as usize, 1 - self.me as usize);
+        let mut batch = Vec::new();
+        mail.busy[me].store(true, AtomicOrdering::SeqCst);
+        mail.started[me].store(true, AtomicOrdering::SeqCst);
+        let result = 'work: loop {
+            if mail.stop.load(AtomicOrdering::Relaxed) {
+                break Ok(());
+            }
+            if self.step() {
+                self.pops += 1;
+                self.flush_dirty();
+                if self.pops.is_multiple_of(EXCHANGE) {
+                    self.send(mail);
+                    self.receive(mail, &mut batch);
+                    self.keep_pace(mail, &mut batch);
+                }
+                if self.pops.is_multiple_of(POLL) {
+                    if let Err(e) = self.poll(self.pops, control) {
+                        break Err(e);
+                    }
+                    mail.reached[me].store(self.reached, AtomicOrdering::Relaxed);
+                    if me == 0 {
+                        let reached =
+                            self.reached + mail.reached[other].load(AtomicOrdering::Relaxed);
+                        control.report(reached as f64 / self.reachable as f64);
+                    }
+                }
+                continue;
+            }
+            // Idle: hand over what is pending, then wait for messages while
+            // the other worker runs.
+            self.send(mail);
+            if self.receive(mail, &mut batch) {
+                continue;
+            }
+            mail.busy[me].store(false, AtomicOrdering::SeqCst);
+            let idle = std::time::Instant::now();
+            loop {
+                if mail.stop.load(AtomicOrdering::Relaxed) || control.is_cancelled() {
+                    break 'work Ok(());
+                }
+                let other_busy = mail.busy[other].load(AtomicOrdering::SeqCst);
+                // Messages sent before the other went idle are seen here.
+                if self.receive(mail, &mut batch) {
+                    mail.busy[me].store(true, AtomicOrdering::SeqCst);
+                    continue 'work;
+                }
+                // A worker that has not started yet may be waiting for a
+                // pool thread: wait for it a little, not for ever (the pool
+                // may run it after this one, in another round).
+                let may_start = !mail.started[other].load(AtomicOrdering::SeqCst)
+                    && idle.elapsed() < START_WAIT;
+                if !other_busy && !may_start {
+                    break 'work Ok(());
+                }
+                std::thread::yield_now();
+            }
+        };
+        mail.busy[me].store(false, AtomicOrdering::SeqCst);
+        if result.is_err() {
+            mail.stop.store(true, AtomicOrdering::Relaxed);
+        }
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
+        result
     }
 
     /// Repairs the vertex distances if the final edge check fails.
@@ -1375,15 +1923,15 @@ impl<'a> Propagation<'a> {
     /// True when some edge has `U(v) > U(u) + |uv|` beyond rounding.
     fn violates_edges(&self) -> bool {
         let faces = self.mesh.faces();
-        (0..self.len.len()).any(|h| {
+        (0..self.geo.frames.len()).any(|h| {
             let (u, v) = (
                 faces[h / 3][h % 3] as usize,
                 faces[h / 3][(h + 1) % 3] as usize,
             );
             let (du, dv) = (self.dist[u], self.dist[v]);
-            let tol = 1e-9 * (du.min(dv) + self.len[h]);
-            (du.is_finite() && dv > du + self.len[h] + tol)
-                || (dv.is_finite() && du > dv + self.len[h] + tol)
+            let l = self.len(h);
+            let tol = 1e-9 * (du.min(dv) + l);
+            (du.is_finite() && dv > du + l + tol) || (dv.is_finite() && du > dv + l + tol)
         })
     }
 
@@ -1747,7 +2295,8 @@ mod tests {
         sources: &[SurfacePoint],
         sectors: bool,
     ) -> (Vec<f64>, Vec<i32>, ExactStats) {
-        let mut p = Propagation::new(mesh, topo, f64::INFINITY);
+        let geo = Geometry::new(mesh, topo);
+        let mut p = Propagation::new(&geo, f64::INFINITY, 0);
         p.sectors = sectors;
         p.seed(sources);
         p.run(&Control::new()).expect("propagation ends");
@@ -1794,6 +2343,62 @@ mod tests {
                 .count();
             assert!(relabelled <= 2, "{relabelled} labels differ");
         }
+    }
+
+    /// A propagation split between two workers (by a plane through the
+    /// first source, exchanging windows and distances) gives one worker's
+    /// distances and labels, whether the two halves run at once or, on a
+    /// pool of one thread, one after the other in rounds.
+    #[test]
+    fn split_propagation_gives_one_workers_distances() {
+        let mesh = bumpy_sphere();
+        let topo = Topology::new(&mesh);
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let cases: [(&[SurfacePoint], f64); 3] = [
+            (&[SurfacePoint::Vertex(0)], f64::INFINITY),
+            (
+                &[SurfacePoint::Face {
+                    face: 100,
+                    bary: [0.2, 0.3, 0.5],
+                }],
+                f64::INFINITY,
+            ),
+            (&[SurfacePoint::Vertex(0), SurfacePoint::Vertex(1500)], 1.5),
+        ];
+        for (sources, max) in cases {
+            assert!(split(&mesh, sources).is_some(), "the mesh is split");
+            let c = Control::new();
+            let (one, _) = propagate_with(&mesh, &topo, sources, max, 1, &c).expect("one");
+            let (two, stats) = propagate_with(&mesh, &topo, sources, max, 2, &c).expect("two");
+            let (rounds, _) = one_thread
+                .install(|| propagate_with(&mesh, &topo, sources, max, 2, &c))
+                .expect("rounds");
+            assert!(stats.windows_propagated > 0);
+            for other in [&two, &rounds] {
+                for v in 0..mesh.num_vertices() {
+                    let (a, b) = (one.distance[v], other.distance[v]);
+                    assert!(
+                        a == b || (a - b).abs() <= 1e-12 * a,
+                        "vertex {v}: {a} against {b}"
+                    );
+                    assert_eq!(one.labels[v], other.labels[v], "vertex {v}");
+                }
+            }
+        }
+        let cancelled = std::sync::atomic::AtomicBool::new(true);
+        let c = Control::new().with_cancel(&cancelled);
+        let r = propagate_with(
+            &mesh,
+            &topo,
+            &[SurfacePoint::Vertex(0)],
+            f64::INFINITY,
+            2,
+            &c,
+        );
+        assert!(matches!(r, Err(MeshSolveError::Cancelled)), "{r:?}");
     }
 
     /// Two windows of one source distance (`δ = 0`) cross where the
