@@ -567,24 +567,18 @@ pub fn exact_distance_with_stats(
     max_distance: f64,
     control: &Control<'_>,
 ) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
-    check_inputs(mesh, topo, sources)?;
-    if max_distance.is_nan() || max_distance < 0.0 {
-        return Err(MeshSolveError::InvalidOption {
-            option: "max_distance",
-            reason: format!("must be >= 0, got {max_distance}"),
-        });
-    }
     let threads = if mesh.num_vertices() >= SPLIT_MIN_VERTICES {
         rayon::current_num_threads()
     } else {
         1
     };
-    propagate_with(mesh, topo, sources, max_distance, threads, control)
+    exact_distance_threads(mesh, topo, sources, max_distance, threads, control)
 }
 
-/// [`exact_distance_with_stats`] on `threads` workers (at most 2: with 2
-/// and a mesh that splits, see [`split`]); the distances agree with one
-/// worker's to rounding.
+/// [`exact_distance_with_stats`] on `threads` workers (at most 2 are used:
+/// from 2, the propagation is split when a plane through the first source
+/// halves the work, see "Two workers" in the module documentation); the
+/// distances agree with one worker's to rounding.
 pub fn exact_distance_threads(
     mesh: &TriMesh,
     topo: &Topology,
