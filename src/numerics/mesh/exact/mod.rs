@@ -594,17 +594,6 @@ pub fn exact_distance_threads(
             reason: format!("must be >= 0, got {max_distance}"),
         });
     }
-    propagate_with(mesh, topo, sources, max_distance, threads, control)
-}
-
-fn propagate_with(
-    mesh: &TriMesh,
-    topo: &Topology,
-    sources: &[SurfacePoint],
-    max_distance: f64,
-    threads: usize,
-    control: &Control<'_>,
-) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
     let mut geo = Geometry::new(mesh, topo);
     if threads >= 2 {
         geo.owner = split(mesh, sources);
@@ -2365,10 +2354,11 @@ mod tests {
         for (sources, max) in cases {
             assert!(split(&mesh, sources).is_some(), "the mesh is split");
             let c = Control::new();
-            let (one, _) = propagate_with(&mesh, &topo, sources, max, 1, &c).expect("one");
-            let (two, stats) = propagate_with(&mesh, &topo, sources, max, 2, &c).expect("two");
+            let (one, _) = exact_distance_threads(&mesh, &topo, sources, max, 1, &c).expect("one");
+            let (two, stats) =
+                exact_distance_threads(&mesh, &topo, sources, max, 2, &c).expect("two");
             let (rounds, _) = one_thread
-                .install(|| propagate_with(&mesh, &topo, sources, max, 2, &c))
+                .install(|| exact_distance_threads(&mesh, &topo, sources, max, 2, &c))
                 .expect("rounds");
             assert!(stats.windows_propagated > 0);
             for other in [&two, &rounds] {
@@ -2384,7 +2374,7 @@ mod tests {
         }
         let cancelled = std::sync::atomic::AtomicBool::new(true);
         let c = Control::new().with_cancel(&cancelled);
-        let r = propagate_with(
+        let r = exact_distance_threads(
             &mesh,
             &topo,
             &[SurfacePoint::Vertex(0)],
