@@ -149,9 +149,9 @@ fn main() {
             );
         }
         "exact" | "exact1" | "exact2" => {
-            // `exact` as the library runs it (two workers from 20k vertices
-            // when the pool has two threads), `exact1` on one worker,
-            // `exact2` on two at any size.
+            // `exact` as the library runs it (one worker), `exact1` the
+            // same through `exact_distance_threads`, `exact2` on two
+            // workers.
             let threads = match case {
                 "exact1" => 1,
                 "exact2" => 2,

@@ -102,21 +102,25 @@
 //! several fans, and vertices of degenerate (zero-area) faces, which no
 //! window crosses.
 //!
-//! **Two workers.** From 20,000 vertices, when the solver pool has two
-//! threads, the propagation is split between two workers by a plane
-//! through the first source (see `split`): each propagates the windows
-//! entering its own faces and keeps its own vertices' distances (and emits
-//! them as pseudo-sources); a window entering the other's face, or a
-//! distance lowered for the other's vertex (with how it was reached), is
-//! sent to it in batches. Each keeps its own copy of the distances for its
-//! cuts: the other's may be late, hence larger, which only makes a cut
-//! weaker, never wrong, since exactness does not rest on the order. A
-//! worker does not run more than two mean edge lengths ahead of the other
-//! (windows far out of order are mostly cut later). The distances are the
-//! one worker's to rounding (asserted); on the sliver sphere and the
-//! icosphere of 41k vertices the solve takes 1.7x less time. On a pool
-//! whose other thread is busy the halves run one after the other, in
-//! rounds, with the same result.
+//! **Two workers (on request, `exact_distance_threads`).** The
+//! propagation can be split between two workers by a plane through the
+//! first source (see `split`): each propagates the windows entering its
+//! own faces and keeps its own vertices' distances (and emits them as
+//! pseudo-sources); a window entering the other's face, or a distance
+//! lowered for the other's vertex (with how it was reached), is sent to it
+//! in batches. Each keeps its own copy of the distances for its cuts: the
+//! other's may be late, hence larger, which only makes a cut weaker, never
+//! wrong, since exactness does not rest on the order. A worker does not
+//! run more than two mean edge lengths ahead of the other (windows far out
+//! of order are mostly cut later). The distances are the one worker's to
+//! rounding (asserted). On a quiet machine the sliver sphere and the
+//! icosphere of 41k vertices take 1.7x less time, the 437k-vertex dragon
+//! 1.15x less; but on a loaded one (two busy loops beside it) the dragon
+//! took 100 s against 11.5 s on one worker: a worker that gets no core
+//! for a time slice lets the other run far ahead, and the windows out of
+//! order multiply. So it is not the default. On a pool whose other thread
+//! is busy the halves run one after the other, in rounds, with the same
+//! result.
 //!
 //! **Sources** at vertices are pseudo-sources at distance 0; a source
 //! inside a face sends one window across each edge of its face (a source on
@@ -194,12 +198,12 @@ const POLL: usize = 4096;
 /// Steps between two exchanges of messages by the workers of a split
 /// propagation.
 const EXCHANGE: usize = 64;
-/// Meshes from this many vertices up are split between two workers when
-/// the pool has two threads (smaller ones take under ~0.1 s on one).
-const SPLIT_MIN_VERTICES: usize = 20_000;
 /// How long an idle worker of a split propagation waits for the other to
 /// start.
 const START_WAIT: std::time::Duration = std::time::Duration::from_millis(2);
+/// The longest a worker waits for the other to catch up before it stops
+/// keeping pace for the rest of the propagation.
+const PACE_WAIT: std::time::Duration = std::time::Duration::from_micros(500);
 /// How far (in mean edge lengths) a worker of a split propagation may run
 /// ahead of the other.
 const PACE: f64 = 2.0;
@@ -559,7 +563,8 @@ pub fn exact_distance(
     exact_distance_with_stats(mesh, topo, sources, max_distance, control).map(|(d, _)| d)
 }
 
-/// [`exact_distance`] and the propagation's counters.
+/// [`exact_distance`] and the propagation's counters (one worker; see
+/// [`exact_distance_threads`] for two).
 pub fn exact_distance_with_stats(
     mesh: &TriMesh,
     topo: &Topology,
@@ -567,18 +572,14 @@ pub fn exact_distance_with_stats(
     max_distance: f64,
     control: &Control<'_>,
 ) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
-    let threads = if mesh.num_vertices() >= SPLIT_MIN_VERTICES {
-        rayon::current_num_threads()
-    } else {
-        1
-    };
-    exact_distance_threads(mesh, topo, sources, max_distance, threads, control)
+    exact_distance_threads(mesh, topo, sources, max_distance, 1, control)
 }
 
 /// [`exact_distance_with_stats`] on `threads` workers (at most 2 are used:
 /// from 2, the propagation is split when a plane through the first source
 /// halves the work, see "Two workers" in the module documentation); the
-/// distances agree with one worker's to rounding.
+/// distances agree with one worker's to rounding. Faster on a quiet
+/// machine, much slower on a loaded one: not the default.
 pub fn exact_distance_threads(
     mesh: &TriMesh,
     topo: &Topology,
@@ -845,6 +846,9 @@ struct Propagation<'a> {
     reachable: usize,
     /// Steps taken by [`Propagation::run_shared`], over all its rounds.
     pops: usize,
+    /// Whether this worker still keeps pace with the other (see
+    /// [`Propagation::keep_pace`]).
+    pacing: bool,
     stats: ExactStats,
     /// Per vertex, how it got its distance (empty unless paths are wanted).
     parents: Vec<Parent>,
@@ -985,6 +989,7 @@ impl<'a> Propagation<'a> {
             reached: 0,
             reachable: 0,
             pops: 0,
+            pacing: true,
             stats: ExactStats::default(),
             parents: Vec::new(),
             targets: Vec::new(),
@@ -1780,6 +1785,7 @@ impl<'a> Propagation<'a> {
     fn keep_pace(&mut self, mail: &Mail, batch: &mut Vec<Message>) {
         let (me, other) = (self.me as usize, 1 - self.me as usize);
         let slack = PACE * self.geo.mean_edge;
+        let start = std::time::Instant::now();
         loop {
             let front = self.front();
             mail.front[me].store(front.to_bits(), AtomicOrdering::Relaxed);
@@ -1792,6 +1798,12 @@ impl<'a> Propagation<'a> {
                 || !mail.busy[other].load(AtomicOrdering::SeqCst)
                 || mail.stop.load(AtomicOrdering::Relaxed)
             {
+                return;
+            }
+            // A wait this long means the other is not getting a core (the
+            // machine is loaded): waiting would only spin; stop pacing.
+            if start.elapsed() > PACE_WAIT {
+                self.pacing = false;
                 return;
             }
             self.send(mail);
@@ -1820,7 +1832,9 @@ impl<'a> Propagation<'a> {
                 if self.pops.is_multiple_of(EXCHANGE) {
                     self.send(mail);
                     self.receive(mail, &mut batch);
-                    self.keep_pace(mail, &mut batch);
+                    if self.pacing {
+                        self.keep_pace(mail, &mut batch);
+                    }
                 }
                 if self.pops.is_multiple_of(POLL) {
                     if let Err(e) = self.poll(self.pops, control) {
@@ -1861,7 +1875,13 @@ impl<'a> Propagation<'a> {
                 if !other_busy && !may_start {
                     break 'work Ok(());
                 }
-                std::thread::yield_now();
+                // Spin briefly, then sleep: on a loaded machine the other
+                // worker needs the core more than this one needs to wait.
+                if idle.elapsed() < START_WAIT {
+                    std::thread::yield_now();
+                } else {
+                    std::thread::sleep(std::time::Duration::from_micros(50));
+                }
             }
         };
         mail.busy[me].store(false, AtomicOrdering::SeqCst);
