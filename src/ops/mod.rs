@@ -132,8 +132,11 @@ pub const PEAK_BYTES_PER_CELL: u64 = 96;
 
 /// Bytes a mesh solve holds per vertex at its peak: positions, topology,
 /// the distance and its outputs, and the sparse Cholesky factor of the heat
-/// method (the largest: about 40 non-zeros per vertex on surface meshes).
-pub const PEAK_BYTES_PER_VERTEX: u64 = 1024;
+/// method (about 40 non-zeros per vertex on surface meshes) or the exact
+/// method's frames and windows (the largest: 1.13 kB per vertex, process
+/// included, for the 437k-vertex dragon's propagation split in two
+/// halves).
+pub const PEAK_BYTES_PER_VERTEX: u64 = 1280;
 
 /// The estimate every operation starts from: for each input array its own
 /// bytes plus [`PEAK_BYTES_PER_CELL`] per cell, for each mesh

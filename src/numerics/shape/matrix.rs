@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use super::graph::{par_rows, Graph};
 use super::ShapeError;
-use crate::numerics::mesh::exact::exact_distance;
+use crate::numerics::mesh::exact::exact_distance_threads;
 use crate::numerics::mesh::fast_marching::{
     check_tensors, march, march_metric, MarchPrep, MarchWork, Metric,
 };
@@ -197,12 +197,14 @@ pub fn distance_rows_in(
             };
             heat_rows(solver, sources, n, control)?
         }
+        // One worker per row: the rows already keep the pool busy.
         MeshMethod::Exact => par_rows(sources, n, control, |s, row| {
-            let d = exact_distance(
+            let (d, _) = exact_distance_threads(
                 mesh,
                 topo,
                 &[SurfacePoint::Vertex(s)],
                 f64::INFINITY,
+                1,
                 &inner,
             )
             .map_err(solve)?;

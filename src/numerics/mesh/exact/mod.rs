@@ -102,25 +102,41 @@
 //! several fans, and vertices of degenerate (zero-area) faces, which no
 //! window crosses.
 //!
-//! **Two workers (on request, `exact_distance_threads`).** The
-//! propagation can be split between two workers by a plane through the
-//! first source (see `split`): each propagates the windows entering its
-//! own faces and keeps its own vertices' distances (and emits them as
-//! pseudo-sources); a window entering the other's face, or a distance
-//! lowered for the other's vertex (with how it was reached), is sent to it
-//! in batches. Each keeps its own copy of the distances for its cuts: the
-//! other's may be late, hence larger, which only makes a cut weaker, never
-//! wrong, since exactness does not rest on the order. A worker does not
-//! run more than two mean edge lengths ahead of the other (windows far out
-//! of order are mostly cut later). The distances are the one worker's to
-//! rounding (asserted). On a quiet machine the sliver sphere and the
-//! icosphere of 41k vertices take 1.7x less time, the 437k-vertex dragon
-//! 1.15x less; but on a loaded one (two busy loops beside it) the dragon
-//! took 100 s against 11.5 s on one worker: a worker that gets no core
-//! for a time slice lets the other run far ahead, and the windows out of
-//! order multiply. So it is not the default. On a pool whose other thread
-//! is busy the halves run one after the other, in rounds, with the same
-//! result.
+//! **Two halves (`exact_distance_threads`, the default on a pool of two
+//! threads or more).** The propagation can be split in two halves by a
+//! plane through the first source (see `split`): each propagates the
+//! windows entering its own faces and keeps its own vertices' distances
+//! (and emits them as pseudo-sources); a window entering the other's
+//! face, or a distance lowered for the other's vertex (with how it was
+//! reached), is sent to it in batches. Each keeps its own copy of the
+//! distances for its cuts: the other's may be late, hence larger, which
+//! only makes a cut weaker, never wrong, since exactness does not rest on
+//! the order. A half is not stepped more than two mean edge lengths ahead
+//! of the other (windows far out of order are mostly cut later). The
+//! distances are the one worker's to rounding (asserted).
+//!
+//! Each half sits behind a lock, and whichever of the two threads of a
+//! `rayon::join` is free steps a half that is not ahead (see `drive`):
+//! with two cores each thread mostly keeps one half; when the second
+//! thread is late (the pool is busy) or loses its core (the machine is
+//! loaded), the first steps both in turn, always the one behind, and a
+//! thread waiting for the half held by the other sleeps. (Before, each
+//! thread owned a half and an idle one gave up after 2 ms: on a loaded
+//! machine the halves then ran alone in turn, each far ahead of the other,
+//! and the 437k-vertex dragon took 100 s against 11.5 s on one worker.
+//! Now, beside two busy loops, it takes 6.5-7.2 s against 7.7-8.1 s.)
+//!
+//! The split is made only where it pays: `split` estimates the time of
+//! the halves kept in step as the sum, over 64 bands of distance from the
+//! sources (an edge-graph Dijkstra pass, run beside the frames), of the
+//! larger half's work, and splits when one worker's work is at least
+//! 1.4 times that. The sliver sphere and the icosphere (41k vertices,
+//! estimate 1.7-2.0) take 1.6-1.7x less time on two cores; the dragon and
+//! its decimations (estimate 1.27-1.29: the fronts run through the halves
+//! at different speeds) took 0.9-1.1x one worker's time when split, and
+//! are not split. One thread stepping both halves in turn takes 6 % more
+//! than one worker (the sliver sphere), hence one worker on a pool of one
+//! thread.
 //!
 //! **Sources** at vertices are pseudo-sources at distance 0; a source
 //! inside a face sends one window across each edge of its face (a source on
@@ -157,13 +173,15 @@
 //! `O(1)`: one window comparison at most and a radix-heap push and pop, so the
 //! time grows like the windows (0.12 s, 0.84 s and 5.1 s on the shared VM,
 //! 5-10x faster than pygeodesic's MMP at 41k-164k).
-//! Memory: the vertex arrays, one window (40 bytes) per
-//! half-edge (per worker) for the comparison filter, 64 bytes per
-//! half-edge of precomputed frames (one cache line) and 16 of corner
-//! angles, `O(n)`, plus the pending windows (56 bytes each, 77k at most at
-//! 164k vertices): with one worker 432 MB peak on the 437k-vertex Stanford
-//! dragon, mesh and process included (1.0 kB per vertex; 359 MB before the
-//! frames were one record per half-edge), 604 MB with two.
+//! Memory: the vertex arrays (per half), one window (40 bytes) per
+//! half-edge for the comparison filter (each half keeps its own faces'),
+//! 64 bytes per half-edge of precomputed frames (one cache line) and 16 of
+//! corner angles, `O(n)`, plus the pending windows (56 bytes each, 77k at
+//! most at 164k vertices): with one worker 432-445 MB peak on the
+//! 437k-vertex Stanford dragon, mesh and process included (1.0 kB per
+//! vertex; 359 MB before the frames were one record per half-edge), 494 MB
+//! split in two halves (604 MB when each half kept the filter's windows of
+//! every half-edge).
 //!
 //! **Robustness.** Degenerate faces are never entered; a final
 //! `O(E)` check verifies `U(v) ≤ U(u) + |uv|` on every edge and, only if
@@ -200,13 +218,19 @@ const POLL: usize = 4096;
 /// Steps between two exchanges of messages by the workers of a split
 /// propagation.
 const EXCHANGE: usize = 64;
-/// How long an idle worker of a split propagation waits for the other to
-/// start.
-const START_WAIT: std::time::Duration = std::time::Duration::from_millis(2);
-/// The longest a worker waits for the other to catch up before it stops
-/// keeping pace for the rest of the propagation.
-const PACE_WAIT: std::time::Duration = std::time::Duration::from_micros(500);
-/// How far (in mean edge lengths) a worker of a split propagation may run
+/// How long a thread of a split propagation with nothing to step spins
+/// (yielding) before it sleeps between its checks.
+const SPIN_WAIT: std::time::Duration = std::time::Duration::from_micros(200);
+/// How long such a thread sleeps between its checks once it stopped
+/// spinning.
+const IDLE_SLEEP: std::time::Duration = std::time::Duration::from_micros(50);
+/// Bands of distance from the source by which [`split`] estimates how
+/// the two halves share the work.
+const BANDS: usize = 64;
+/// The least estimated gain (one worker's work over the sum per band of
+/// the larger half's) for which [`split`] splits.
+const MIN_SPLIT_GAIN: f64 = 1.4;
+/// How far (in mean edge lengths) one half of a split propagation may run
 /// ahead of the other.
 const PACE: f64 = 2.0;
 /// Angle (radians) by which the sector a saddle pseudo-source emits into is
@@ -408,43 +432,123 @@ enum Message {
     },
 }
 
-/// The two workers' mailboxes and states.
+/// The two halves' mailboxes and fronts.
 #[derive(Default)]
 struct Mail {
     inbox: [Mutex<Vec<Message>>; 2],
-    /// Whether each worker is working (not idle, not stopped).
-    busy: [AtomicBool; 2],
-    /// Set by a worker that failed (cancelled, or out of steps).
+    /// Set when a half failed (cancelled, or out of steps).
     stop: AtomicBool,
-    /// Vertices each worker has reached (for progress).
+    /// Vertices each half has reached (for progress).
     reached: [AtomicUsize; 2],
-    /// Each worker's front (the `f64` bits of its next key).
+    /// Each half's front: the `f64` bits of its next key (the bits of
+    /// non-negative floats order like the floats), lowered by the other
+    /// half to the keys of the messages it sends until the owner takes
+    /// them.
     front: [AtomicU64; 2],
-    /// Whether each worker has started (in this round).
-    started: [AtomicBool; 2],
 }
 
-impl Mail {
-    fn is_empty(&self) -> bool {
-        self.inbox
-            .iter()
-            .all(|i| i.lock().unwrap_or_else(|e| e.into_inner()).is_empty())
+/// A propagation split in two halves, each behind a lock: whichever thread
+/// holds a half steps it (see [`drive`]).
+struct Halves<'a> {
+    half: [Mutex<Propagation<'a>>; 2],
+    mail: Mail,
+    /// Set when both halves have settled.
+    done: AtomicBool,
+}
+
+/// Holds half `i`, unless another thread does.
+fn try_hold<'h, 'a>(
+    halves: &'h Halves<'a>,
+    i: usize,
+) -> Option<std::sync::MutexGuard<'h, Propagation<'a>>> {
+    match halves.half[i].try_lock() {
+        Ok(g) => Some(g),
+        Err(std::sync::TryLockError::Poisoned(e)) => Some(e.into_inner()),
+        Err(std::sync::TryLockError::WouldBlock) => None,
     }
 }
 
-/// How a propagation is split between two workers: by a plane through the
-/// first source, so that the front runs through both halves at once,
-/// among the 13 directions of the `{-1, 0, 1}³` lattice the one that
-/// halves the work most evenly (a source at the end of a long part still
-/// gets a plane along it), each face weighing its distance from the
-/// source. Faces go by their centroid, vertices by their position. `None`
-/// when no plane gives each half at least a third of the work.
+/// One thread's share of a split propagation: it steps whichever half it
+/// can hold and is not ahead (the one it stepped last first, to keep its
+/// caches), until both halves have settled. With one thread it alternates
+/// between the halves, keeping them within [`PACE`] of each other; with
+/// two each mostly keeps one half; a thread that finds the half behind held
+/// by the other waits for it, spinning shortly, then sleeping: on a loaded
+/// machine the thread holding it needs the core more.
+fn drive(halves: &Halves<'_>, first: usize, control: &Control<'_>) -> Result<(), MeshSolveError> {
+    let mail = &halves.mail;
+    let mut batch = Vec::new();
+    let mut last = first;
+    let mut waiting: Option<std::time::Instant> = None;
+    loop {
+        if halves.done.load(AtomicOrdering::Acquire) || mail.stop.load(AtomicOrdering::Relaxed) {
+            return Ok(());
+        }
+        if control.is_cancelled() {
+            mail.stop.store(true, AtomicOrdering::Relaxed);
+            return Err(MeshSolveError::Cancelled);
+        }
+        let mut stepped = false;
+        for i in [last, 1 - last] {
+            let Some(mut p) = try_hold(halves, i) else {
+                continue;
+            };
+            match p.work(control, mail, &mut batch) {
+                Ok(0) => {}
+                Ok(_) => {
+                    last = i;
+                    stepped = true;
+                    break;
+                }
+                Err(e) => {
+                    mail.stop.store(true, AtomicOrdering::Relaxed);
+                    return Err(e);
+                }
+            }
+        }
+        if stepped {
+            waiting = None;
+            continue;
+        }
+        // Nothing to step here: both halves settled (holding both, with
+        // their messages taken, nothing can be pending), or the half behind
+        // is held by the other thread.
+        if let (Some(mut p0), Some(mut p1)) = (try_hold(halves, 0), try_hold(halves, 1)) {
+            p0.receive(mail, &mut batch);
+            p1.receive(mail, &mut batch);
+            let (f0, f1) = (p0.publish(mail), p1.publish(mail));
+            if !f0.is_finite() && !f1.is_finite() {
+                halves.done.store(true, AtomicOrdering::Release);
+                return Ok(());
+            }
+            continue;
+        }
+        let since = *waiting.get_or_insert_with(std::time::Instant::now);
+        if since.elapsed() < SPIN_WAIT {
+            std::thread::yield_now();
+        } else {
+            std::thread::sleep(IDLE_SLEEP);
+        }
+    }
+}
+
+/// How a propagation is split in two halves: by a plane through the first
+/// source, so that the front runs through both halves at once, among the
+/// 13 directions of the `{-1, 0, 1}³` lattice the one under which the
+/// halves kept in step take the least time. Each face weighs its distance
+/// `d` from the sources along the edge graph (the rays crossing an edge
+/// are split by the vertices between it and the source); the time is the
+/// sum over [`BANDS`] bands of `d` of the larger half's weight. Faces go
+/// by their centroid, vertices by their position. `None` when the
+/// estimated gain (the total weight over that time) is below
+/// [`MIN_SPLIT_GAIN`], or the sources reach nothing.
 ///
-/// On the sliver sphere and the icosphere (41k vertices) the two halves
-/// take 1.7x less time than one worker, with the same windows; on a
-/// decimated dragon (51k), whose fronts run through the halves at
-/// different speeds, hardly less than one (see `tests/bench/README.md`).
-fn split(mesh: &TriMesh, sources: &[SurfacePoint]) -> Option<Owners> {
+/// Estimates and gains measured on two cores: the sliver sphere 1.74-1.98
+/// (1.6-1.7x less time), the Stanford dragon and its decimations to 11k,
+/// 21k and 51k vertices 1.27-1.29 (0.9-1.1x when split). Euclidean
+/// distances from the source estimated 1.5 on the dragons: its curled
+/// parts are far along the surface from what is near in space.
+fn split(mesh: &TriMesh, sources: &[SurfacePoint], control: &Control<'_>) -> Option<Owners> {
     let origin = sources.first()?.position(mesh);
     let mut normals = Vec::with_capacity(13);
     for a in -1i32..=1 {
@@ -469,25 +573,60 @@ fn split(mesh: &TriMesh, sources: &[SurfacePoint]) -> Option<Owners> {
     let side = |q: [f64; 3], n: [f64; 3]| u8::from(q[0] * n[0] + q[1] * n[1] + q[2] * n[2] > 0.0);
     // A face's work grows with its distance from the source (the rays
     // crossing an edge are split by the vertices between it and the
-    // source): weigh faces by their distance.
-    let weight = |q: &[f64; 3]| norm(*q);
-    let total: f64 = offsets.iter().map(weight).sum();
-    let (best, ones) = normals
+    // source): weigh faces by their distance. The halves keep pace band
+    // by band of distance, so the time is about the sum over the bands
+    // of the larger half's work.
+    // The fronts' distances from the sources, approximated along edges
+    // (Euclidean distances from the source misjudge a curled-up shape).
+    let graph =
+        super::dijkstra::dijkstra_distance(mesh, sources, None, f64::INFINITY, control).ok()?;
+    let dist: Vec<f64> = faces
         .iter()
-        .map(|&n| {
-            let ones: f64 = offsets
-                .iter()
-                .filter(|&&q| side(q, n) == 1)
-                .map(weight)
-                .sum();
-            (n, ones)
+        .map(|f| {
+            let d = f.map(|v| graph.distance[v as usize]);
+            let mean = (d[0] + d[1] + d[2]) / 3.0;
+            if mean.is_finite() {
+                mean
+            } else {
+                0.0
+            }
         })
-        .max_by(|a, b| a.1.min(total - a.1).total_cmp(&b.1.min(total - b.1)))?;
-    if total.is_nan() || total <= 0.0 || 3.0 * ones.min(total - ones) < total {
+        .collect();
+    let far = dist.iter().copied().fold(0.0f64, f64::max);
+    if !(far.is_finite() && far > 0.0) {
         return None;
     }
+    let band: Vec<u8> = dist
+        .iter()
+        .map(|&d| ((d / far * BANDS as f64) as usize).min(BANDS - 1) as u8)
+        .collect();
+    let total: f64 = dist.iter().sum();
+    let (best, time) = normals
+        .iter()
+        .map(|&n| {
+            let mut work = [[0.0f64; BANDS]; 2];
+            for ((q, &d), &b) in offsets.iter().zip(&dist).zip(&band) {
+                work[side(*q, n) as usize][b as usize] += d;
+            }
+            let time: f64 = (0..BANDS).map(|b| work[0][b].max(work[1][b])).sum();
+            (n, time)
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    if total < MIN_SPLIT_GAIN * time {
+        return None;
+    }
+    let mut count = [0u32; 2];
     Some(Owners {
-        face: offsets.iter().map(|&q| side(q, best)).collect(),
+        face: offsets
+            .iter()
+            .map(|&q| {
+                let o = side(q, best);
+                let local = count[o as usize];
+                count[o as usize] += 1;
+                (u32::from(o) << 31) | local
+            })
+            .collect(),
+        faces: count,
         vertex: (0..mesh.num_vertices() as u32)
             .map(|v| side(sub(mesh.position(v), origin), best))
             .collect(),
@@ -565,8 +704,9 @@ pub fn exact_distance(
     exact_distance_with_stats(mesh, topo, sources, max_distance, control).map(|(d, _)| d)
 }
 
-/// [`exact_distance`] and the propagation's counters (one worker; see
-/// [`exact_distance_threads`] for two).
+/// [`exact_distance`] and the propagation's counters: on two halves (see
+/// [`exact_distance_threads`]) when the caller's pool has two threads or
+/// more and the split pays, else on one worker.
 pub fn exact_distance_with_stats(
     mesh: &TriMesh,
     topo: &Topology,
@@ -574,14 +714,17 @@ pub fn exact_distance_with_stats(
     max_distance: f64,
     control: &Control<'_>,
 ) -> Result<(MeshDistance, ExactStats), MeshSolveError> {
-    exact_distance_threads(mesh, topo, sources, max_distance, 1, control)
+    let threads = rayon::current_num_threads().min(2);
+    exact_distance_threads(mesh, topo, sources, max_distance, threads, control)
 }
 
-/// [`exact_distance_with_stats`] on `threads` workers (at most 2 are used:
-/// from 2, the propagation is split when a plane through the first source
-/// halves the work, see "Two workers" in the module documentation); the
-/// distances agree with one worker's to rounding. Faster on a quiet
-/// machine, much slower on a loaded one: not the default.
+/// [`exact_distance_with_stats`] on `threads` workers: 1 never splits;
+/// from 2 the propagation is split in two halves when a plane through the
+/// first source shares the work well enough (see "Two halves" in the
+/// module documentation), stepped by up to two threads of the caller's
+/// pool (one steps both in turn when no other is free). The distances
+/// agree with one worker's to rounding. Callers that already run many
+/// solves in parallel (a distance matrix's rows) ask for 1.
 pub fn exact_distance_threads(
     mesh: &TriMesh,
     topo: &Topology,
@@ -597,10 +740,17 @@ pub fn exact_distance_threads(
             reason: format!("must be >= 0, got {max_distance}"),
         });
     }
-    let mut geo = Geometry::new(mesh, topo);
-    if threads >= 2 {
-        geo.owner = split(mesh, sources);
-    }
+    let geo = if threads >= 2 {
+        // The split's estimate (a Dijkstra pass) beside the frames.
+        let (mut geo, owner) = rayon::join(
+            || Geometry::new(mesh, topo),
+            || split(mesh, sources, &control.cancel_only()),
+        );
+        geo.owner = owner;
+        geo
+    } else {
+        Geometry::new(mesh, topo)
+    };
     if geo.owner.is_none() {
         let mut p = Propagation::new(&geo, max_distance, 0);
         p.seed(sources);
@@ -611,24 +761,24 @@ pub fn exact_distance_threads(
     let mut p1 = Propagation::new(&geo, max_distance, 1);
     p0.seed(sources);
     p1.seed(sources);
-    let mail = Mail::default();
-    // Rounds: a worker stops when it is idle and the other is not running
-    // (or has not started: the pool may run the two halves one after the
-    // other), so messages can be left for another round.
-    loop {
-        for started in &mail.started {
-            started.store(false, AtomicOrdering::SeqCst);
-        }
-        let (r0, r1) = rayon::join(
-            || p0.run_shared(control, &mail),
-            || p1.run_shared(control, &mail),
-        );
-        r0?;
-        r1?;
-        if mail.is_empty() {
-            break;
-        }
+    let halves = Halves {
+        half: [Mutex::new(p0), Mutex::new(p1)],
+        mail: Mail::default(),
+        done: AtomicBool::new(false),
+    };
+    for (i, h) in halves.half.iter().enumerate() {
+        let mut p = h.lock().unwrap_or_else(|e| e.into_inner());
+        p.publish(&halves.mail);
+        debug_assert_eq!(p.me as usize, i);
     }
+    // The second thread joins if the pool has one free (now or later); the
+    // first does everything otherwise.
+    let (r0, r1) = rayon::join(|| drive(&halves, 0, control), || drive(&halves, 1, control));
+    r0?;
+    r1?;
+    let [h0, h1] = halves.half;
+    let mut p0 = h0.into_inner().unwrap_or_else(|e| e.into_inner());
+    let p1 = h1.into_inner().unwrap_or_else(|e| e.into_inner());
     // Every lowered distance was sent to its vertex's owner: the owner's
     // values are the smallest.
     let owners = geo.owner.as_ref().map(|o| &o.vertex);
@@ -806,7 +956,12 @@ struct Geometry<'a> {
 /// The halves of a mesh split between two workers: a window belongs to
 /// the owner of the face it enters, a vertex's distance to its owner.
 struct Owners {
-    face: Vec<u8>,
+    /// Per face, its owner (bit 31) and its index among its owner's faces
+    /// (the low bits): each half keeps the latest windows of its own
+    /// faces' half-edges only.
+    face: Vec<u32>,
+    /// How many faces each half owns.
+    faces: [u32; 2],
     vertex: Vec<u8>,
 }
 
@@ -848,11 +1003,10 @@ struct Propagation<'a> {
     recent: Vec<[Field; RECENT]>,
     reached: usize,
     reachable: usize,
-    /// Steps taken by [`Propagation::run_shared`], over all its rounds.
+    /// Steps taken by [`Propagation::work`], over all its calls.
     pops: usize,
-    /// Whether this worker still keeps pace with the other (see
-    /// [`Propagation::keep_pace`]).
-    pacing: bool,
+    /// The smallest key of the messages in `out`.
+    out_min: f64,
     stats: ExactStats,
     /// Per vertex, how it got its distance (empty unless paths are wanted).
     parents: Vec<Parent>,
@@ -989,11 +1143,17 @@ impl<'a> Propagation<'a> {
             sectors: true,
             windows: RadixQueue::new(),
             vertices: BinaryHeap::new(),
-            recent: vec![[Field::EMPTY; RECENT]; 3 * nf],
+            recent: vec![
+                [Field::EMPTY; RECENT];
+                3 * geo
+                    .owner
+                    .as_ref()
+                    .map_or(nf, |o| o.faces[me as usize] as usize)
+            ],
             reached: 0,
             reachable: 0,
             pops: 0,
-            pacing: true,
+            out_min: f64::INFINITY,
             stats: ExactStats::default(),
             parents: Vec::new(),
             targets: Vec::new(),
@@ -1017,7 +1177,17 @@ impl<'a> Propagation<'a> {
     fn owns_face(&self, f: usize) -> bool {
         match &self.geo.owner {
             None => true,
-            Some(o) => o.face[f] == self.me,
+            Some(o) => (o.face[f] >> 31) as u8 == self.me,
+        }
+    }
+
+    /// Where the latest windows of half-edge `h`, of one of this worker's
+    /// faces, are kept in [`Propagation::recent`].
+    #[inline(always)]
+    fn recent_slot(&self, h: usize) -> usize {
+        match &self.geo.owner {
+            None => h,
+            Some(o) => 3 * (o.face[h / 3] & !(1 << 31)) as usize + h % 3,
         }
     }
 
@@ -1390,6 +1560,7 @@ impl<'a> Propagation<'a> {
             // The other worker's face (which makes its own while seeding).
             if !self.seeding {
                 self.stats.windows_created += 1;
+                self.out_min = self.out_min.min(w.key);
                 self.out.push(Message::Window(w));
             }
             return;
@@ -1476,7 +1647,7 @@ impl<'a> Propagation<'a> {
         // Against the latest windows propagated across this edge in the
         // same direction (see the module documentation).
         if recent {
-            for o in self.recent[w.h as usize] {
+            for o in self.recent[self.recent_slot(w.h as usize)] {
                 if !trim_by_window(w, &o, l) {
                     return false;
                 }
@@ -1560,7 +1731,8 @@ impl<'a> Propagation<'a> {
             });
         }
         self.stats.windows_propagated += 1;
-        let slots = &mut self.recent[w.h as usize];
+        let slot = self.recent_slot(w.h as usize);
+        let slots = &mut self.recent[slot];
         slots.copy_within(0..RECENT - 1, 1);
         slots[0] = Field::of(&w);
         let (b0, b1) = (w.b0, w.b1);
@@ -1720,6 +1892,7 @@ impl<'a> Propagation<'a> {
     fn flush_dirty(&mut self) {
         for v in self.dirty.drain(..) {
             let vi = v as usize;
+            self.out_min = self.out_min.min(self.dist[vi]);
             self.out.push(Message::Distance {
                 v,
                 label: self.label[vi],
@@ -1730,16 +1903,23 @@ impl<'a> Propagation<'a> {
         }
     }
 
-    /// Hands the batch of messages to the other worker.
+    /// Hands the batch of messages to the other half, and lowers its
+    /// published front to their smallest key (until it takes them and
+    /// publishes its own).
     fn send(&mut self, mail: &Mail) {
         if !self.out.is_empty() {
             let other = 1 - self.me as usize;
-            let mut inbox = mail.inbox[other].lock().unwrap_or_else(|e| e.into_inner());
-            inbox.append(&mut self.out);
+            {
+                let mut inbox = mail.inbox[other].lock().unwrap_or_else(|e| e.into_inner());
+                inbox.append(&mut self.out);
+            }
+            let key = key_bits(self.out_min) << KEY_SHIFT;
+            mail.front[other].fetch_min(key, AtomicOrdering::Relaxed);
+            self.out_min = f64::INFINITY;
         }
     }
 
-    /// Takes this worker's messages: windows into its queue, distances of
+    /// Takes this half's messages: windows into its queue, distances of
     /// its vertices (queued as pseudo-sources where they are). False when
     /// there were none.
     fn receive(&mut self, mail: &Mail, batch: &mut Vec<Message>) -> bool {
@@ -1782,120 +1962,61 @@ impl<'a> Propagation<'a> {
         w.min(v)
     }
 
-    /// Publishes this worker's front and, while it runs more than
-    /// [`PACE`] mean edge lengths ahead of the busy other worker, waits for
-    /// it (taking its messages): windows processed far out of order are
-    /// mostly cut later by the other's, so running ahead costs windows.
-    fn keep_pace(&mut self, mail: &Mail, batch: &mut Vec<Message>) {
-        let (me, other) = (self.me as usize, 1 - self.me as usize);
-        let slack = PACE * self.geo.mean_edge;
-        let start = std::time::Instant::now();
-        loop {
-            let front = self.front();
-            mail.front[me].store(front.to_bits(), AtomicOrdering::Relaxed);
-            let theirs = f64::from_bits(mail.front[other].load(AtomicOrdering::Relaxed));
-            // Nothing pending here (both workers could otherwise wait for
-            // each other), or no usable slack: no waiting.
-            if !front.is_finite()
-                || !slack.is_finite()
-                || front <= theirs + slack
-                || !mail.busy[other].load(AtomicOrdering::SeqCst)
-                || mail.stop.load(AtomicOrdering::Relaxed)
-            {
-                return;
-            }
-            // A wait this long means the other is not getting a core (the
-            // machine is loaded): waiting would only spin; stop pacing.
-            if start.elapsed() > PACE_WAIT {
-                self.pacing = false;
-                return;
-            }
-            self.send(mail);
-            if !self.receive(mail, batch) {
-                std::thread::yield_now();
-            }
-        }
+    /// Publishes this half's front (infinite when nothing is pending) and
+    /// returns it.
+    fn publish(&mut self, mail: &Mail) -> f64 {
+        let front = self.front();
+        mail.front[self.me as usize].store(front.to_bits(), AtomicOrdering::Relaxed);
+        front
     }
 
-    /// This worker's part of a split propagation (see [`split`]): its own
-    /// windows and pseudo-sources, exchanging messages with the other
-    /// worker, until both are idle, or it is idle and the other is not
-    /// running (which may leave messages for another round).
-    fn run_shared(&mut self, control: &Control<'_>, mail: &Mail) -> Result<(), MeshSolveError> {
+    /// Steps this half of a split propagation (see [`split`]) while it is
+    /// not more than [`PACE`] mean edge lengths ahead of the other (windows
+    /// processed far out of order are mostly cut later by the other's, so
+    /// running ahead costs windows), exchanging messages every
+    /// [`EXCHANGE`] steps. Returns the steps taken: 0 when it is idle or
+    /// ahead.
+    fn work(
+        &mut self,
+        control: &Control<'_>,
+        mail: &Mail,
+        batch: &mut Vec<Message>,
+    ) -> Result<usize, MeshSolveError> {
         let (me, other) = (self.me as usize, 1 - self.me as usize);
-        let mut batch = Vec::new();
-        mail.busy[me].store(true, AtomicOrdering::SeqCst);
-        mail.started[me].store(true, AtomicOrdering::SeqCst);
-        let result = 'work: loop {
-            if mail.stop.load(AtomicOrdering::Relaxed) {
-                break Ok(());
-            }
-            if self.step() {
-                self.pops += 1;
-                self.flush_dirty();
-                if self.pops.is_multiple_of(EXCHANGE) {
+        let slack = PACE * self.geo.mean_edge;
+        self.receive(mail, batch);
+        let mut steps = 0usize;
+        loop {
+            if steps.is_multiple_of(EXCHANGE) {
+                if steps > 0 {
                     self.send(mail);
-                    self.receive(mail, &mut batch);
-                    if self.pacing {
-                        self.keep_pace(mail, &mut batch);
-                    }
+                    self.receive(mail, batch);
                 }
-                if self.pops.is_multiple_of(POLL) {
-                    if let Err(e) = self.poll(self.pops, control) {
-                        break Err(e);
-                    }
-                    mail.reached[me].store(self.reached, AtomicOrdering::Relaxed);
-                    if me == 0 {
-                        let reached =
-                            self.reached + mail.reached[other].load(AtomicOrdering::Relaxed);
-                        control.report(reached as f64 / self.reachable as f64);
-                    }
-                }
-                continue;
-            }
-            // Idle: hand over what is pending, then wait for messages while
-            // the other worker runs.
-            self.send(mail);
-            if self.receive(mail, &mut batch) {
-                continue;
-            }
-            mail.busy[me].store(false, AtomicOrdering::SeqCst);
-            let idle = std::time::Instant::now();
-            loop {
-                if mail.stop.load(AtomicOrdering::Relaxed) || control.is_cancelled() {
-                    break 'work Ok(());
-                }
-                let other_busy = mail.busy[other].load(AtomicOrdering::SeqCst);
-                // Messages sent before the other went idle are seen here.
-                if self.receive(mail, &mut batch) {
-                    mail.busy[me].store(true, AtomicOrdering::SeqCst);
-                    continue 'work;
-                }
-                // A worker that has not started yet may be waiting for a
-                // pool thread: wait for it a little, not for ever (the pool
-                // may run it after this one, in another round).
-                let may_start = !mail.started[other].load(AtomicOrdering::SeqCst)
-                    && idle.elapsed() < START_WAIT;
-                if !other_busy && !may_start {
-                    break 'work Ok(());
-                }
-                // Spin briefly, then sleep: on a loaded machine the other
-                // worker needs the core more than this one needs to wait.
-                if idle.elapsed() < START_WAIT {
-                    std::thread::yield_now();
-                } else {
-                    std::thread::sleep(std::time::Duration::from_micros(50));
+                let front = self.publish(mail);
+                let theirs = f64::from_bits(mail.front[other].load(AtomicOrdering::Relaxed));
+                if !front.is_finite()
+                    || front > theirs + slack
+                    || mail.stop.load(AtomicOrdering::Relaxed)
+                {
+                    break;
                 }
             }
-        };
-        mail.busy[me].store(false, AtomicOrdering::SeqCst);
-        if result.is_err() {
-            mail.stop.store(true, AtomicOrdering::Relaxed);
+            if !self.step() {
+                break;
+            }
+            self.pops += 1;
+            steps += 1;
+            self.flush_dirty();
+            if self.pops.is_multiple_of(POLL) {
+                self.poll(self.pops, control)?;
+                mail.reached[me].store(self.reached, AtomicOrdering::Relaxed);
+                let reached = self.reached + mail.reached[other].load(AtomicOrdering::Relaxed);
+                control.report(reached as f64 / self.reachable as f64);
+            }
         }
-        if control.is_cancelled() {
-            return Err(MeshSolveError::Cancelled);
-        }
-        result
+        self.send(mail);
+        self.publish(mail);
+        Ok(steps)
     }
 
     /// Repairs the vertex distances if the final edge check fails.
@@ -2352,10 +2473,10 @@ mod tests {
         }
     }
 
-    /// A propagation split between two workers (by a plane through the
-    /// first source, exchanging windows and distances) gives one worker's
-    /// distances and labels, whether the two halves run at once or, on a
-    /// pool of one thread, one after the other in rounds.
+    /// A propagation split in two halves (by a plane through the first
+    /// source, exchanging windows and distances) gives one worker's
+    /// distances and labels, whether two threads step the halves at once
+    /// or, on a pool of one thread, one thread steps both in turn.
     #[test]
     fn split_propagation_gives_one_workers_distances() {
         let mesh = bumpy_sphere();
@@ -2376,16 +2497,20 @@ mod tests {
             (&[SurfacePoint::Vertex(0), SurfacePoint::Vertex(1500)], 1.5),
         ];
         for (sources, max) in cases {
-            assert!(split(&mesh, sources).is_some(), "the mesh is split");
+            assert!(
+                split(&mesh, sources, &Control::new()).is_some(),
+                "the mesh is split"
+            );
             let c = Control::new();
             let (one, _) = exact_distance_threads(&mesh, &topo, sources, max, 1, &c).expect("one");
             let (two, stats) =
                 exact_distance_threads(&mesh, &topo, sources, max, 2, &c).expect("two");
-            let (rounds, _) = one_thread
+            // One thread steps both halves in turn.
+            let (alternating, _) = one_thread
                 .install(|| exact_distance_threads(&mesh, &topo, sources, max, 2, &c))
-                .expect("rounds");
+                .expect("alternating");
             assert!(stats.windows_propagated > 0);
-            for other in [&two, &rounds] {
+            for other in [&two, &alternating] {
                 for v in 0..mesh.num_vertices() {
                     let (a, b) = (one.distance[v], other.distance[v]);
                     assert!(
