@@ -6,7 +6,7 @@
 //! cargo bench --bench mesh_geodesics -- fmm 7       # fast marching time, error
 //! cargo bench --bench mesh_geodesics -- dijkstra 7
 //! cargo bench --bench mesh_geodesics -- dump 7 /tmp/ico7.obj   # the mesh for the Python peers
-//! cargo bench --bench mesh_geodesics -- exact 6     # exact window propagation (exact1: one worker, exact2: two)
+//! cargo bench --bench mesh_geodesics -- exact 6     # exact window propagation (exact: the default, exact1: one worker, exact2: two halves)
 //! cargo bench --bench mesh_geodesics -- heat /tmp/dragon.ply   # any mesh file (source: vertex 0)
 //! ```
 //!
@@ -149,9 +149,9 @@ fn main() {
             );
         }
         "exact" | "exact1" | "exact2" => {
-            // `exact` as the library runs it (one worker), `exact1` the
-            // same through `exact_distance_threads`, `exact2` on two
-            // workers.
+            // `exact` as the library runs it (two halves where the split
+            // pays, on a pool of two threads or more), `exact1` on one
+            // worker, `exact2` split in two halves whenever a plane can.
             let threads = match case {
                 "exact1" => 1,
                 "exact2" => 2,
