@@ -124,14 +124,16 @@
 //! thread owned a half and an idle one gave up after 2 ms: on a loaded
 //! machine the halves then ran alone in turn, each far ahead of the other,
 //! and the 437k-vertex dragon took 100 s against 11.5 s on one worker.
-//! Now, beside two busy loops, it takes 6.5-7.2 s against 7.7-8.1 s.)
+//! Now, split by force beside two busy loops, it takes 6.5-7.2 s against
+//! 7.7-8.1 s on one worker.)
 //!
 //! The split is made only where it pays: `split` estimates the time of
 //! the halves kept in step as the sum, over 64 bands of distance from the
 //! sources (an edge-graph Dijkstra pass, run beside the frames), of the
 //! larger half's work, and splits when one worker's work is at least
-//! 1.4 times that. The sliver sphere and the icosphere (41k vertices,
-//! estimate 1.7-2.0) take 1.6-1.7x less time on two cores; the dragon and
+//! 1.4 times that. The sliver sphere (41k vertices, estimate 1.7-2.0
+//! from three sources) and the icosphere of 41k vertices take 1.6-1.7x
+//! less time on two cores; the dragon and
 //! its decimations (estimate 1.27-1.29: the fronts run through the halves
 //! at different speeds) took 0.9-1.1x one worker's time when split, and
 //! are not split. One thread stepping both halves in turn takes 6 % more
