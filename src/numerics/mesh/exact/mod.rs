@@ -2546,6 +2546,48 @@ mod tests {
         assert!(matches!(r, Err(MeshSolveError::Cancelled)), "{r:?}");
     }
 
+    /// The default on the service's situation: solves large enough to
+    /// split, several at once on one pool of two threads, so that each
+    /// solve's second thread is sometimes busy with another solve, stolen
+    /// late or not at all. Every solve ends with one worker's distances.
+    #[test]
+    fn concurrent_default_solves_on_one_pool_give_one_workers_distances() {
+        let mesh = crate::numerics::mesh::shapes::icosphere(5, 1.0);
+        assert!(mesh.num_vertices() >= MIN_SPLIT_VERTICES);
+        let topo = Topology::new(&mesh);
+        let sources = [0u32, 77, 5000, 10000].map(|v| [SurfacePoint::Vertex(v)]);
+        let c = Control::new();
+        assert!(split(&mesh, &sources[0], &c).is_some(), "the mesh is split");
+        let one: Vec<MeshDistance> = sources
+            .iter()
+            .map(|s| {
+                exact_distance_threads(&mesh, &topo, s, f64::INFINITY, 1, &c)
+                    .expect("one")
+                    .0
+            })
+            .collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("pool");
+        let all: Vec<MeshDistance> = pool.install(|| {
+            use rayon::prelude::*;
+            sources
+                .par_iter()
+                .map(|s| exact_distance(&mesh, &topo, s, f64::INFINITY, &c).expect("default"))
+                .collect()
+        });
+        for (a, b) in one.iter().zip(&all) {
+            for v in 0..mesh.num_vertices() {
+                let (x, y) = (a.distance[v], b.distance[v]);
+                assert!(
+                    x == y || (x - y).abs() <= 1e-12 * x,
+                    "vertex {v}: {x} against {y}"
+                );
+            }
+        }
+    }
+
     /// Two windows of one source distance (`δ = 0`) cross where the
     /// twice-squared equation has a double root, which rounding pushed
     /// below a zero discriminant: the crossing was lost and the whole
