@@ -134,8 +134,8 @@ pub const PEAK_BYTES_PER_CELL: u64 = 96;
 /// the distance and its outputs, and the sparse Cholesky factor of the heat
 /// method (about 40 non-zeros per vertex on surface meshes) or the exact
 /// method's frames and windows (the largest: 1.13 kB per vertex, process
-/// included, for the 437k-vertex dragon's propagation split in two
-/// halves).
+/// included, measured with the 437k-vertex dragon's propagation forced
+/// into two halves, as sphere-like meshes are split by default).
 pub const PEAK_BYTES_PER_VERTEX: u64 = 1280;
 
 /// The estimate every operation starts from: for each input array its own
