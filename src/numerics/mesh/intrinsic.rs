@@ -153,7 +153,7 @@ impl IntrinsicMesh {
         }
         let tufted = topo.non_manifold_edges > 0 || topo.misoriented_edges > 0;
         let (faces, mut twin) = if tufted {
-            tufted_cover(mesh)
+            tufted_cover(mesh, topo)
         } else {
             (mesh.faces().to_vec(), topo.opposite.clone())
         };
@@ -207,33 +207,55 @@ impl IntrinsicMesh {
 }
 
 /// Faces and gluing of the tufted cover: face `2f` is `f`, face `2f + 1` is
-/// `f` reversed (`[f0, f2, f1]`); around each undirected edge the
-/// half-edges in the direction `lo → hi` (one per original face) are glued
-/// to those in the direction `hi → lo` of the next face in index order.
-fn tufted_cover(mesh: &TriMesh) -> (Vec<[u32; 3]>, Vec<u32>) {
+/// `f` reversed (`[f0, f2, f1]`, so edge `k` of `f` is edge `2 − k` of its
+/// reverse); around each undirected edge the half-edges in the direction
+/// `lo → hi` (one per original face) are glued to those in the direction
+/// `hi → lo` of the next face in index order.
+///
+/// An edge with two faces (`topo.opposite`) glues the front sheets to each
+/// other and the back sheets to each other when the faces agree on their
+/// orientation, front to back when they do not; only boundary and
+/// non-manifold edges, usually a few per cent of the half-edges, are
+/// grouped by sorting.
+fn tufted_cover(mesh: &TriMesh, topo: &Topology) -> (Vec<[u32; 3]>, Vec<u32>) {
     let mut faces = Vec::with_capacity(2 * mesh.num_faces());
     for f in mesh.faces() {
         faces.push(*f);
         faces.push([f[0], f[2], f[1]]);
     }
-    // (lo, hi, original face, forward?) per cover half-edge.
-    let mut keys: Vec<(u32, u32, u32, bool, u32)> = Vec::with_capacity(3 * faces.len());
-    for (c, f) in faces.iter().enumerate() {
-        for k in 0..3 {
-            let (u, v) = (f[k], f[(k + 1) % 3]);
-            let h = (3 * c + k) as u32;
-            keys.push((u.min(v), u.max(v), (c / 2) as u32, u < v, h));
+    // The cover half-edge of edge `k` of original face `f` on sheet `back`.
+    let cover = |h: u32, back: bool| -> u32 {
+        let (f, k) = (h / 3, h % 3);
+        if back {
+            3 * (2 * f + 1) + (2 - k)
+        } else {
+            3 * (2 * f) + k
+        }
+    };
+    let from = |h: u32| mesh.faces()[(h / 3) as usize][(h % 3) as usize];
+    let mut twin = vec![NONE; 3 * faces.len()];
+    // (lo, hi, original face, forward?, cover half-edge) of the unglued ones.
+    let mut keys: Vec<(u32, u32, u32, bool, u32)> = Vec::new();
+    for h in 0..topo.opposite.len() as u32 {
+        let g = topo.opposite[h as usize];
+        if g == NONE {
+            let (u, v) = (from(h), from(3 * (h / 3) + (h % 3 + 1) % 3));
+            for back in [false, true] {
+                // The back sheet runs the edge from v to u.
+                let forward = if back { v < u } else { u < v };
+                keys.push((u.min(v), u.max(v), h / 3, forward, cover(h, back)));
+            }
+        } else if h < g {
+            let agree = from(h) != from(g);
+            for back in [false, true] {
+                let (a, b) = (cover(h, back), cover(g, back ^ !agree));
+                twin[a as usize] = b;
+                twin[b as usize] = a;
+            }
         }
     }
     keys.sort_unstable();
-    let mut twin = vec![NONE; 3 * faces.len()];
-    let mut start = 0;
-    while start < keys.len() {
-        let mut end = start;
-        while end < keys.len() && keys[end].0 == keys[start].0 && keys[end].1 == keys[start].1 {
-            end += 1;
-        }
-        let group = &keys[start..end];
+    for group in keys.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1) {
         // Sorted by face then direction: backward (false) before forward.
         let backward: Vec<u32> = group.iter().filter(|e| !e.3).map(|e| e.4).collect();
         let forward: Vec<u32> = group.iter().filter(|e| e.3).map(|e| e.4).collect();
@@ -243,7 +265,6 @@ fn tufted_cover(mesh: &TriMesh) -> (Vec<[u32; 3]>, Vec<u32>) {
             twin[a as usize] = b;
             twin[b as usize] = a;
         }
-        start = end;
     }
     (faces, twin)
 }
@@ -532,7 +553,7 @@ mod tests {
         .unwrap();
         let topo = Topology::new(&mesh);
         assert!(topo.non_manifold_edges > 0);
-        let (faces, twin) = tufted_cover(&mesh);
+        let (faces, twin) = tufted_cover(&mesh, &topo);
         assert_eq!(faces.len(), 6);
         assert!(twin.iter().all(|&t| t != NONE));
         let (m, twins) =
@@ -544,6 +565,79 @@ mod tests {
         let rel = (area_sum(&m) - area_sum(&exact)).abs() / area_sum(&exact);
         assert!(rel < 1e-4, "{rel}");
         check_delaunay(&m, &twins);
+    }
+
+    /// The gluing of every half-edge by one global sort of the cover's
+    /// half-edges (the definition, and the implementation before the
+    /// topology was reused).
+    fn sorted_tufted_cover(mesh: &TriMesh) -> Vec<u32> {
+        let mut faces = Vec::new();
+        for f in mesh.faces() {
+            faces.push(*f);
+            faces.push([f[0], f[2], f[1]]);
+        }
+        let mut keys = Vec::new();
+        for (c, f) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let (u, v) = (f[k], f[(k + 1) % 3]);
+                keys.push((
+                    u.min(v),
+                    u.max(v),
+                    (c / 2) as u32,
+                    u < v,
+                    (3 * c + k) as u32,
+                ));
+            }
+        }
+        keys.sort_unstable();
+        let mut twin = vec![NONE; 3 * faces.len()];
+        for group in keys.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1) {
+            let backward: Vec<u32> = group.iter().filter(|e| !e.3).map(|e| e.4).collect();
+            let forward: Vec<u32> = group.iter().filter(|e| e.3).map(|e| e.4).collect();
+            let m = forward.len().min(backward.len());
+            for i in 0..m {
+                twin[forward[i] as usize] = backward[(i + 1) % m];
+                twin[backward[(i + 1) % m] as usize] = forward[i];
+            }
+        }
+        twin
+    }
+
+    /// On a grid with a boundary, two faces of reversed orientation and
+    /// two fins on one diagonal (four faces on one edge), the
+    /// gluing read from the topology is the sorted one, half-edge for
+    /// half-edge.
+    #[test]
+    fn the_tufted_cover_from_the_topology_is_the_sorted_gluing() {
+        let n = 6u32;
+        let id = |i: u32, j: u32| i * (n + 1) + j;
+        let mut pos = Vec::new();
+        for i in 0..=n {
+            for j in 0..=n {
+                pos.push([i as f64, j as f64, 0.1 * ((i * j) % 3) as f64]);
+            }
+        }
+        let mut faces = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        faces[7] = [faces[7][0], faces[7][2], faces[7][1]];
+        faces[20] = [faces[20][0], faces[20][2], faces[20][1]];
+        let apex = pos.len() as u32;
+        pos.push([2.5, 2.5, 2.0]);
+        faces.push([id(2, 2), id(3, 3), apex]);
+        faces.push([id(3, 3), id(2, 2), apex + 1]);
+        pos.push([2.5, 2.5, -2.0]);
+        let mesh = TriMesh::new(pos, faces).unwrap();
+        let topo = Topology::new(&mesh);
+        assert!(topo.non_manifold_edges > 0 && topo.misoriented_edges > 0);
+        assert!(topo.boundary_edges > 0);
+        let (_, twin) = tufted_cover(&mesh, &topo);
+        assert_eq!(twin, sorted_tufted_cover(&mesh));
+        assert!(twin.iter().all(|&t| t != NONE));
     }
 
     /// A collinear (zero-area) face gets a positive area after
