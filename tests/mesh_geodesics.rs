@@ -50,6 +50,17 @@ fn icosphere_convergence_fast_marching_and_heat() {
         eprintln!("{method:?}: mean relative errors {errs:?}, observed orders {orders:?}");
         // Level 5 has 10,242 vertices: the issue's bound is 2 %.
         assert!(errs[3] <= 0.02, "{method:?} at 10k vertices: {}", errs[3]);
+        if method == MeshMethod::Heat {
+            // With `t = m h²` the heat kernel always spans the same number
+            // of triangles, and the normalised gradient's discretisation
+            // leaves a relative bias that does not vanish with `h` (about
+            // −0.2 % at m = 1); with the offset fitted on the source's ring
+            // the first-order part falls to it by level 4 (0.61, 0.35,
+            // 0.16, 0.16 % measured), so only the coarse levels converge.
+            assert!(errs[..3].windows(2).all(|w| w[1] < 0.7 * w[0]), "{errs:?}");
+            assert!(errs[3] <= 0.003, "heat at 10k vertices: {}", errs[3]);
+            continue;
+        }
         // Converges: the error falls at every refinement, and the order
         // observed between the two finest levels (2,562 -> 10,242 vertices)
         // is at least 0.5 (it rises towards 1 as h shrinks: pre-asymptotic).
@@ -732,4 +743,106 @@ fn heat_is_finite_on_non_manifold_meshes() {
     for j in 0..=10u32 {
         assert!(d[(top0 + j) as usize] > d[(row + j) as usize] + 0.08);
     }
+}
+
+/// An icosphere whose radius is modulated by bumps a few edges across
+/// (`1 + a sin(kx) sin(ky) sin(kz)`; at level 4 and `k = 12`, half a
+/// period is about five edges): a surface curved at the scale of its
+/// edges, as a scan is.
+fn bumpy_sphere(level: u32, amplitude: f64, k: f64) -> TriMesh {
+    let m = icosphere(level, 1.0);
+    let pos = m
+        .positions()
+        .iter()
+        .map(|p| {
+            let r = 1.0 + amplitude * (k * p[0]).sin() * (k * p[1]).sin() * (k * p[2]).sin();
+            [r * p[0], r * p[1], r * p[2]]
+        })
+        .collect();
+    TriMesh::new(pos, m.faces().to_vec()).unwrap()
+}
+
+/// Heat distances from vertex 0 with the time step adapted or not.
+fn heat_adapted(mesh: &TriMesh, adapt: bool) -> (Vec<f64>, HeatSolver) {
+    let topo = Topology::new(mesh);
+    let opts = HeatOptions {
+        adapt,
+        ..Default::default()
+    };
+    let solver = HeatSolver::new(mesh, &topo, &opts, &Control::new()).unwrap();
+    let d = solver
+        .distance(
+            mesh,
+            &[SurfacePoint::Vertex(0)],
+            f64::INFINITY,
+            &Control::new(),
+        )
+        .unwrap()
+        .distance;
+    (d, solver)
+}
+
+/// The time step follows the curvature: a sphere (constant curvature, at
+/// any resolution, with needles and slivers or not) keeps `t = h²`; a
+/// bumpy sphere gets a smaller one, and its mean error against the exact
+/// polyhedral distance falls.
+#[test]
+fn heat_time_step_is_lowered_where_curvature_varies_at_the_edge_scale() {
+    for mesh in [icosphere(3, 1.0), icosphere(5, 1.0), needles_and_slivers(4)] {
+        let (_, solver) = heat_adapted(&mesh, true);
+        let h = mesh.mean_edge_length();
+        assert!(
+            solver.roughness() < geodex::numerics::mesh::heat::ROUGHNESS_REFERENCE,
+            "{} vertices: roughness {}",
+            mesh.num_vertices(),
+            solver.roughness()
+        );
+        assert_eq!(solver.t(), h * h);
+    }
+    let mesh = bumpy_sphere(4, 0.15, 12.0);
+    let exact = solve(&mesh, &[SurfacePoint::Vertex(0)], MeshMethod::Exact);
+    let (adapted, solver) = heat_adapted(&mesh, true);
+    let (fixed, plain) = heat_adapted(&mesh, false);
+    let h = mesh.mean_edge_length();
+    let e_adapted = mean_relative_error(&adapted, &exact, 0.1);
+    let e_fixed = mean_relative_error(&fixed, &exact, 0.1);
+    eprintln!(
+        "bumpy sphere: roughness {:.3e}, t/h² {:.3}, mean relative error {e_adapted:.4} \
+         adapted, {e_fixed:.4} at t = h²",
+        solver.roughness(),
+        solver.t() / (h * h)
+    );
+    assert!(solver.roughness() > 2.0 * geodex::numerics::mesh::heat::ROUGHNESS_REFERENCE);
+    assert!(solver.t() < 0.7 * h * h && plain.t() == h * h);
+    // Measured: roughness 9.5·10⁻³, t = 0.56 h², 4.35 % against 4.81 %.
+    assert!(e_adapted < 0.95 * e_fixed, "{e_adapted} against {e_fixed}");
+}
+
+/// The constant of the Poisson step is fitted on the source's one-ring
+/// (their distances are the edge lengths), not pinned at the source,
+/// whose rounded cone tip sits about `0.15 h` too high: on the 10k-vertex
+/// icosphere the mean error is below 0.3 % (0.84 % when pinned), the source
+/// is at 0 and its neighbours at their edge lengths within `0.1 h`.
+#[test]
+fn heat_offset_is_fitted_on_the_sources_ring() {
+    let err = sphere_error(5, MeshMethod::Heat);
+    eprintln!("heat on the 10k-vertex icosphere: mean relative error {err:.5}");
+    assert!(err < 0.003, "{err}");
+    let mesh = icosphere(5, 1.0);
+    let (d, _) = heat_adapted(&mesh, true);
+    let h = mesh.mean_edge_length();
+    assert_eq!(d[0], 0.0);
+    let topo = Topology::new(&mesh);
+    let p0 = mesh.position(0);
+    let mut mean = 0.0;
+    let mut count = 0.0;
+    for &f in topo.faces_of(0) {
+        for &v in &mesh.faces()[f as usize] {
+            if v != 0 {
+                mean += d[v as usize] - norm(sub(mesh.position(v), p0));
+                count += 1.0;
+            }
+        }
+    }
+    assert!((mean / count).abs() < 0.1 * h, "{}", mean / count / h);
 }

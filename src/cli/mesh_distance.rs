@@ -58,6 +58,10 @@ pub struct MeshDistanceArgs {
     /// Heat method Laplacian.
     #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
     pub laplacian: LaplacianArg,
+    /// Heat method: lower t on surfaces curved at the scale of their edges
+    /// (the request's `heat.adapt`); false gives t = m h².
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub heat_adapt: bool,
     /// Vertices farther than this get +inf.
     #[arg(long)]
     pub max_distance: Option<f64>,
@@ -94,6 +98,7 @@ impl LaplacianArg {
                 LaplacianArg::Robust => LaplacianSpec::Robust,
                 LaplacianArg::Cotangent => LaplacianSpec::Cotangent,
             },
+            adapt: true,
         }
     }
 }
@@ -237,7 +242,10 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         max_distance: args.max_distance,
         weights: metric.weights,
         metric: metric.metric,
-        heat: args.laplacian.heat(args.heat_m),
+        heat: HeatSpec {
+            adapt: args.heat_adapt,
+            ..args.laplacian.heat(args.heat_m)
+        },
     };
     let files = metric.files;
     let vertices = args.source_vertices.len();
@@ -278,6 +286,14 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         part("factorisation_seconds"),
         solve - factor
     );
+    if let Some(t) = doc["heat"]["t"].as_f64() {
+        eprintln!(
+            "geodex: heat: t {t:.4e} (m {}, curvature roughness {:.3e}, estimated in {:.4} s)",
+            doc["heat"]["m"],
+            doc["heat"]["roughness"].as_f64().unwrap_or(0.0),
+            part("curvature_seconds"),
+        );
+    }
     Ok(())
 }
 

@@ -30,8 +30,9 @@ pub enum CacheKey {
     /// The decoded mesh of a dataset.
     Mesh(String),
     /// The heat factorisation of a mesh dataset for one time-step factor
-    /// (`m`'s bits) and one Laplacian.
-    Heat(String, u64, Laplacian),
+    /// (`m`'s bits), one Laplacian and whether the time step adapts to the
+    /// curvature.
+    Heat(String, u64, Laplacian, bool),
     /// A designed cost (`ops::spec::map_cache::cost_key`).
     Cost(String),
     /// A distance map (`ops::spec::map_cache::map_key`).
@@ -323,7 +324,7 @@ mod tests {
         c.insert(CacheKey::Array("a".into()), array(1), 40);
         c.insert(CacheKey::Array("b".into()), array(1), 40);
         assert!(c.get(&CacheKey::Array("a".into())).is_some()); // a is now newer than b
-        let heat = CacheKey::Heat("m".into(), 1, Laplacian::Robust);
+        let heat = CacheKey::Heat("m".into(), 1, Laplacian::Robust, true);
         let _slot = c.heat_slot(heat.clone());
         assert_eq!(c.bytes(), 80);
         c.resize(&heat, 50); // b goes, a stays

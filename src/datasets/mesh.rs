@@ -125,7 +125,12 @@ impl DatasetStore {
         options: &HeatOptions,
         build: impl FnOnce() -> Result<HeatSolver, E>,
     ) -> Result<(Arc<HeatSolver>, bool), E> {
-        let key = CacheKey::Heat(id.to_string(), options.m.to_bits(), options.laplacian);
+        let key = CacheKey::Heat(
+            id.to_string(),
+            options.m.to_bits(),
+            options.laplacian,
+            options.adapt,
+        );
         let slot = self.memory.heat_slot(key.clone());
         let mut guard = lock(&slot);
         if let Some(s) = guard.as_ref() {

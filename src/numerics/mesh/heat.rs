@@ -22,22 +22,45 @@
 //!    side projected to zero mean per connected component and `L + εM`
 //!    (`ε = 10⁻⁹ / h²`) plus one pinned vertex per component factored so
 //!    that the system is definite;
-//!    `φ` is shifted per component so that its smallest value at the
-//!    sources is 0.
+//!    `φ` is shifted per component by the mean of `φ_w − d_w` over the
+//!    vertices whose distance `d_w` is known exactly (the neighbours of a
+//!    source vertex, the corners of a source face), and source vertices
+//!    are set to 0 (pinning `φ` at the source leaves the offset of the
+//!    cone's rounded tip, about `−0.15 h`).
 //!
 //! Both matrices share one sparsity pattern: one symbolic factorisation
 //! (AMD fill-reducing ordering, supernodal when worthwhile: faer's default)
-//! and two numeric ones, kept in [`HeatSolver`] so that every further query
-//! costs two pairs of triangular solves and two sparse sweeps over the faces.
+//! and two numeric ones, side by side, kept in [`HeatSolver`] so that every
+//! further query costs two pairs of triangular solves and two sparse
+//! sweeps over the faces.
 //!
-//! `t = m h²` with `h` the mean edge length (`m = 1` by default). The
-//! solution of step 1 decays like `exp(−d/√t)`, which underflows `f64` once
-//! `d / √t ≳ 700`: on fine meshes (an icosphere of 655k vertices) the far
-//! side of the surface would get `u = 0` and a meaningless gradient. The
-//! solver therefore uses `t = max(m h², (D/600)²)`, `D` an upper bound of
-//! the geodesic diameter (twice a Dijkstra eccentricity); [`HeatSolver::t`]
-//! reports the value used. Accuracy is first order in `h` (about 1 %
-//! mean relative error on a 10k-vertex icosphere).
+//! # Time step
+//!
+//! `t = m h² min(1, √(ρ₀ / ρ))`, `h` the mean edge length, `m = 1` by
+//! default, `ρ` the curvature roughness (how far the Gaussian curvature,
+//! smoothed over about four edges, strays from its mean, in units of
+//! `h⁻²`; [`ROUGHNESS_REFERENCE`] `ρ₀ = 3·10⁻³`). A time step smooths the
+//! heat over `√t`, and on a surface whose curvature varies at that scale
+//! (a scan whose features are a few edges across) the normalised gradient
+//! then leaves the geodesics, a bias that grows with `t` (on the
+//! 51k-vertex decimated dragon the mean error is 1.45 % at `t = h²`,
+//! 0.58 % at `t = h²/2`), while discretisation errors shrink with `t`
+//! (on an icosphere of needles and slivers, 0.62 % at `t = h²`, 2.1 % at
+//! `h²/2`). A smooth surface, however badly triangulated, keeps `ρ`
+//! below `ρ₀` and `t = m h²`; [`HeatOptions::adapt`] `= false` keeps it
+//! always.
+//!
+//! The solution of step 1 decays like `exp(−d/√t)`, which underflows `f64`
+//! once `d / √t ≳ 700`: on fine meshes (an icosphere of 655k vertices) the
+//! far side of the surface would get `u = 0` and a meaningless gradient.
+//! The solver therefore raises `t` to at least `(D/600)²`, `D` an upper
+//! bound of the geodesic diameter (twice a Dijkstra eccentricity);
+//! [`HeatSolver::t`] reports the value used.
+//!
+//! Accuracy: with `t` a fixed multiple of `h²` the heat kernel spans the
+//! same number of triangles at every resolution, so besides a first-order
+//! part a relative bias of about −0.2 % (`m = 1`) remains as `h → 0`; the
+//! mean relative error on a 10k-vertex icosphere is 0.16 %.
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -71,6 +94,9 @@ pub struct HeatOptions {
     pub m: f64,
     /// Raise `t` where needed so that the heat does not underflow (default true).
     pub underflow_guard: bool,
+    /// Lower `t` on surfaces curved at the scale of their edges (default
+    /// true): `t = m h² min(1, √(ρ₀ / ρ))`, see [`HeatSolver::new`].
+    pub adapt: bool,
     /// The Laplacian (default [`Laplacian::Robust`]).
     pub laplacian: Laplacian,
     /// Mollification factor of the robust Laplacian (default
@@ -83,21 +109,28 @@ impl Default for HeatOptions {
         Self {
             m: 1.0,
             underflow_guard: true,
+            adapt: true,
             laplacian: Laplacian::Robust,
             mollify: DEFAULT_MOLLIFY,
         }
     }
 }
 
-/// Seconds spent in each phase of [`HeatSolver::new`].
+/// Seconds spent in each phase of [`HeatSolver::new`]. The guard runs
+/// beside the triangulation, so the setup's wall time is less than the sum.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SetupPhases {
-    /// The Dijkstra eccentricities of the underflow guard.
+    /// The Dijkstra eccentricities of the underflow guard (and the angle
+    /// defects of the curvature estimate).
     pub underflow_guard: f64,
     /// The triangulation (flips, mollification, tufted cover) and the
     /// assembly of `M` and `L`.
     pub laplacian: f64,
-    /// The symbolic and the two numeric Cholesky factorisations.
+    /// The curvature roughness estimate of the time-step rule, beside the
+    /// symbolic factorisation.
+    pub curvature: f64,
+    /// The symbolic and the two numeric Cholesky factorisations (the
+    /// numeric ones side by side), the curvature estimate included.
     pub factorisation: f64,
 }
 
@@ -128,6 +161,11 @@ pub struct HeatSolver {
     n: usize,
     t: f64,
     h: f64,
+    /// The curvature roughness `ρ` of the time-step rule (0 when not
+    /// adapted).
+    roughness: f64,
+    /// The length of each edge of `graph`, in its order.
+    ring_lengths: Vec<f64>,
     mass: Vec<f64>,
     /// The faces of the (intrinsic) triangulation, non-degenerate only.
     faces: Vec<PlanarFace>,
@@ -143,6 +181,176 @@ pub struct HeatSolver {
     component: Vec<u32>,
     components: usize,
     graph: VertexGraph,
+}
+
+/// Reference roughness `ρ₀` of the time-step rule: `t = m h²` up to
+/// `ρ = ρ₀`, `m h² √(ρ₀ / ρ)` above (see [`HeatSolver::new`]).
+pub const ROUGHNESS_REFERENCE: f64 = 3e-3;
+
+/// Smoothing time of the roughness estimate in units of `h²`: the kernel
+/// of `(M + 16 h² L)⁻¹` reaches about four edges.
+const ROUGHNESS_SMOOTHING: f64 = 16.0;
+
+/// Conjugate-gradient iterations of the roughness estimate. The smoothing
+/// only needs the low frequencies, but what the iterations leave of the
+/// high ones inflates `ρ` on meshes of needles and slivers: on a 2.6k-vertex
+/// icosphere of them, 5.1·10⁻³ after 20 iterations, 1.47·10⁻³ after 40,
+/// 1.33·10⁻³ converged (200); on the 51k-vertex dragon 1.39·10⁻², 1.21·10⁻²
+/// and 1.18·10⁻².
+const ROUGHNESS_ITERATIONS: usize = 40;
+
+/// The factor `min(1, √(ρ₀ / ρ))` applied to `m h²`.
+fn adapt_factor(roughness: f64) -> f64 {
+    if roughness > ROUGHNESS_REFERENCE {
+        (ROUGHNESS_REFERENCE / roughness).sqrt()
+    } else {
+        1.0
+    }
+}
+
+/// Angle defect `2π − Σ θ` of every vertex (its integrated Gaussian
+/// curvature, intrinsic), 0 at vertices on a boundary or a non-manifold
+/// edge (whose defect measures the boundary's turning, not curvature)
+/// and at vertices in no face.
+fn angle_defects(mesh: &TriMesh, topo: &Topology) -> Vec<f64> {
+    let n = mesh.num_vertices();
+    let mut angle = vec![0.0; n];
+    let mut rim = vec![false; n];
+    for (f, face) in mesh.faces().iter().enumerate() {
+        let p = face.map(|v| mesh.position(v));
+        for k in 0..3 {
+            let (u, w) = (sub(p[(k + 1) % 3], p[k]), sub(p[(k + 2) % 3], p[k]));
+            let cross = [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ];
+            let dot = u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+            angle[face[k] as usize] += norm(cross).atan2(dot);
+            if topo.opposite[3 * f + k] == super::NONE {
+                rim[face[k] as usize] = true;
+                rim[face[(k + 1) % 3] as usize] = true;
+            }
+        }
+    }
+    (0..n)
+        .map(|v| {
+            if rim[v] || topo.faces_of(v as u32).is_empty() {
+                0.0
+            } else {
+                2.0 * std::f64::consts::PI - angle[v]
+            }
+        })
+        .collect()
+}
+
+/// The curvature roughness `ρ = h² Σ_i M_i |K̃_i − K̄| / Σ_i M_i`: how far
+/// the Gaussian curvature smoothed over about four edges strays from its
+/// mean `K̄` over the component, in units of `h⁻²`.
+///
+/// `K̃ = S k / S M1`, with `k` the angle defects, `M1` the vertex areas and
+/// `S ≈ (M + 16 h² L)⁻¹` ([`ROUGHNESS_ITERATIONS`] Jacobi-preconditioned
+/// conjugate-gradient iterations from 0): a weighted mean of the curvature
+/// around each vertex. Constant curvature does not bend the heat's
+/// gradient (a sphere is symmetric about every source), varying curvature
+/// does. A smooth surface has `ρ → 0` as it is refined, whatever its
+/// triangles (needles and slivers: defects that cancel within a few
+/// edges); a scan whose features are a few edges across keeps its
+/// curvature through the smoothing.
+fn roughness(
+    lap: &LowerLaplacian,
+    mass: &[f64],
+    defects: &[f64],
+    (component, components): (&[u32], usize),
+    h: f64,
+) -> f64 {
+    let n = mass.len();
+    let s = ROUGHNESS_SMOOTHING * h * h;
+    // Two right-hand sides solved together: the defects and the areas.
+    let b: Vec<[f64; 2]> = (0..n).map(|i| [defects[i], mass[i]]).collect();
+    let precond: Vec<f64> = (0..n)
+        .map(|i| {
+            let d = mass[i] + s * lap.diag[i];
+            if d > 0.0 {
+                1.0 / d
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let dot = |x: &[[f64; 2]], y: &[[f64; 2]]| {
+        x.iter().zip(y).fold([0.0; 2], |acc, (a, b)| {
+            [acc[0] + a[0] * b[0], acc[1] + a[1] * b[1]]
+        })
+    };
+    let mut x = vec![[0.0; 2]; n];
+    let mut r = b;
+    let mut z: Vec<[f64; 2]> = r
+        .iter()
+        .zip(&precond)
+        .map(|(ri, pi)| [ri[0] * pi, ri[1] * pi])
+        .collect();
+    let mut p = z.clone();
+    let mut rz = dot(&r, &z);
+    let mut ap = vec![[0.0; 2]; n];
+    for _ in 0..ROUGHNESS_ITERATIONS {
+        lap.apply(s, mass, &p, &mut ap);
+        let pap = dot(&p, &ap);
+        let alpha = [0, 1].map(|c| if pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
+        let mut rz_next = [0.0; 2];
+        for i in 0..n {
+            for c in 0..2 {
+                x[i][c] += alpha[c] * p[i][c];
+                r[i][c] -= alpha[c] * ap[i][c];
+                z[i][c] = r[i][c] * precond[i];
+                rz_next[c] += r[i][c] * z[i][c];
+            }
+        }
+        let beta = [0, 1].map(|c| if rz[c] > 0.0 { rz_next[c] / rz[c] } else { 0.0 });
+        for (pi, zi) in p.iter_mut().zip(&z) {
+            for c in 0..2 {
+                pi[c] = zi[c] + beta[c] * pi[c];
+            }
+        }
+        rz = rz_next;
+    }
+    // The mean curvature of each component, `Σ k / Σ M`.
+    let mut total = vec![[0.0; 2]; components];
+    for i in 0..n {
+        let c = component[i] as usize;
+        total[c][0] += defects[i];
+        total[c][1] += mass[i];
+    }
+    let (mut sum, mut area) = (0.0, 0.0);
+    for i in 0..n {
+        let (xi, m) = (x[i], mass[i]);
+        let c = component[i] as usize;
+        if xi[1] > 0.0 && m > 0.0 && xi[0].is_finite() && total[c][1] > 0.0 {
+            sum += m * (xi[0] / xi[1] - total[c][0] / total[c][1]).abs();
+            area += m;
+        }
+    }
+    if area > 0.0 {
+        h * h * sum / area
+    } else {
+        0.0
+    }
+}
+
+/// `|p_w − p_v|` for every neighbour `w` of every vertex `v` of `graph`,
+/// in the graph's order.
+fn ring_lengths(mesh: &TriMesh, graph: &VertexGraph) -> Vec<f64> {
+    let mut out = Vec::with_capacity(graph.neighbours.len());
+    for v in 0..mesh.num_vertices() {
+        let p = mesh.position(v as u32);
+        out.extend(
+            graph
+                .of(v as u32)
+                .iter()
+                .map(|&w| norm(sub(mesh.position(w), p))),
+        );
+    }
+    out
 }
 
 fn numerical(what: &str, e: impl std::fmt::Debug) -> MeshSolveError {
@@ -210,6 +418,28 @@ impl LowerLaplacian {
         }
     }
 
+    /// `y = (D + s L) x` for two vectors at once, `D = diag(d)`, from the
+    /// lower triangle (each off-diagonal slot acts on both its row and its
+    /// column).
+    fn apply(&self, s: f64, d: &[f64], x: &[[f64; 2]], y: &mut [[f64; 2]]) {
+        y.fill([0.0; 2]);
+        for j in 0..self.diag.len() {
+            let xj = x[j];
+            let dj = d[j] + s * self.diag[j];
+            // Rows above j were scattered into y[j] by the earlier columns.
+            let mut acc = [y[j][0] + dj * xj[0], y[j][1] + dj * xj[1]];
+            for slot in self.col_ptr[j] + 1..self.col_ptr[j + 1] {
+                let (i, w) = (self.row_idx[slot], s * self.off[slot]);
+                let xi = x[i];
+                acc[0] += w * xi[0];
+                acc[1] += w * xi[1];
+                y[i][0] += w * xj[0];
+                y[i][1] += w * xj[1];
+            }
+            y[j] = acc;
+        }
+    }
+
     /// The lower triangle of `s L + D`, `D` diagonal (`d(j)` at `(j, j)`).
     fn matrix(&self, s: f64, d: &dyn Fn(usize) -> f64) -> SparseColMat<usize, f64> {
         let mut values = Vec::with_capacity(self.row_idx.len());
@@ -249,34 +479,50 @@ impl HeatSolver {
         if !(h.is_finite() && h > 0.0) {
             return Err(MeshSolveError::Numerical("mean edge length is zero".into()));
         }
-        let started = std::time::Instant::now();
-        let graph = VertexGraph::new(mesh);
-        let mut t = options.m * h * h;
-        if options.underflow_guard {
-            // One seed per component: eccentricities of the component roots.
-            let mut roots = Vec::new();
-            let mut seen = vec![false; topo.components];
-            for v in 0..n {
-                let c = topo.component[v] as usize;
-                if !seen[c] && !topo.faces_of(v as u32).is_empty() {
-                    seen[c] = true;
-                    roots.push(SurfacePoint::Vertex(v as u32));
+        // The guard's Dijkstra pass and the triangulation are independent:
+        // run side by side on the pool (each times itself).
+        let guard = || -> Result<(VertexGraph, Vec<f64>, f64, f64), MeshSolveError> {
+            let began = std::time::Instant::now();
+            let graph = VertexGraph::new(mesh);
+            let defects = if options.adapt {
+                angle_defects(mesh, topo)
+            } else {
+                Vec::new()
+            };
+            let mut floor = 0.0;
+            if options.underflow_guard {
+                // One seed per component: eccentricities of the component roots.
+                let mut roots = Vec::new();
+                let mut seen = vec![false; topo.components];
+                for v in 0..n {
+                    let c = topo.component[v] as usize;
+                    if !seen[c] && !topo.faces_of(v as u32).is_empty() {
+                        seen[c] = true;
+                        roots.push(SurfacePoint::Vertex(v as u32));
+                    }
                 }
+                let d = dijkstra_on_graph(mesh, &graph, &roots, None, f64::INFINITY, control)?;
+                let ecc = d
+                    .distance
+                    .iter()
+                    .filter(|x| x.is_finite())
+                    .fold(0.0f64, |a, &b| a.max(b));
+                floor = (2.0 * ecc / 600.0).powi(2);
             }
-            let d = dijkstra_on_graph(mesh, &graph, &roots, None, f64::INFINITY, control)?;
-            let ecc = d
-                .distance
-                .iter()
-                .filter(|x| x.is_finite())
-                .fold(0.0f64, |a, &b| a.max(b));
-            let floor = (2.0 * ecc / 600.0).powi(2);
-            t = t.max(floor);
-        }
-        let guard_seconds = started.elapsed().as_secs_f64();
-        let tri = match options.laplacian {
-            Laplacian::Robust => IntrinsicMesh::delaunay(mesh, topo, options.mollify, control)?,
-            Laplacian::Cotangent => IntrinsicMesh::extrinsic(mesh),
+            Ok((graph, defects, floor, began.elapsed().as_secs_f64()))
         };
+        let triangulate = || -> Result<(IntrinsicMesh, f64), MeshSolveError> {
+            let began = std::time::Instant::now();
+            let tri = match options.laplacian {
+                Laplacian::Robust => IntrinsicMesh::delaunay(mesh, topo, options.mollify, control)?,
+                Laplacian::Cotangent => IntrinsicMesh::extrinsic(mesh),
+            };
+            Ok((tri, began.elapsed().as_secs_f64()))
+        };
+        let (guarded, triangulated) = rayon::join(guard, triangulate);
+        let (graph, defects, floor, guard_seconds) = guarded?;
+        let (tri, triangulation_seconds) = triangulated?;
+        let assembling = std::time::Instant::now();
         let scale = tri.scale;
         let mut mass = vec![0.0; n];
         let mut faces = Vec::with_capacity(tri.faces.len());
@@ -329,31 +575,59 @@ impl HeatSolver {
                 pin[v] = mass[v] / (h * h);
             }
         }
-        let a = lap.matrix(t, &|i| mass[i]);
         let b = lap.matrix(1.0, &|i| eps * mass[i] + pin[i]);
-        let laplacian_seconds = started.elapsed().as_secs_f64() - guard_seconds;
-        let symbolic = SymbolicLlt::try_new(a.symbolic(), Side::Lower)
-            .map_err(|e| numerical("symbolic factorisation", e))?;
+        let factorising = std::time::Instant::now();
+        let laplacian_seconds = triangulation_seconds + (factorising - assembling).as_secs_f64();
+        // The fill-reducing ordering needs only the pattern: the curvature
+        // that sets `t` is estimated beside it.
+        let (symbolic, rough) = rayon::join(
+            || {
+                SymbolicLlt::try_new(b.symbolic(), Side::Lower)
+                    .map_err(|e| numerical("symbolic factorisation", e))
+            },
+            || {
+                let began = std::time::Instant::now();
+                let rho = if options.adapt {
+                    roughness(&lap, &mass, &defects, (&topo.component, topo.components), h)
+                } else {
+                    0.0
+                };
+                (rho, began.elapsed().as_secs_f64())
+            },
+        );
+        let symbolic = symbolic?;
+        let (roughness, curvature_seconds) = rough;
+        let t = (options.m * h * h * adapt_factor(roughness)).max(floor);
+        let a = lap.matrix(t, &|i| mass[i]);
         control.report(0.2);
-        let heat = Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)
-            .map_err(|e| numerical("factorisation of M + tL", e))?;
+        // Two numeric factorisations of one pattern, side by side.
+        let (heat, poisson) = rayon::join(
+            || {
+                Llt::try_new_with_symbolic(symbolic.clone(), a.as_ref(), Side::Lower)
+                    .map_err(|e| numerical("factorisation of M + tL", e))
+            },
+            || {
+                Llt::try_new_with_symbolic(symbolic.clone(), b.as_ref(), Side::Lower)
+                    .map_err(|e| numerical("factorisation of L", e))
+            },
+        );
+        let (heat, poisson) = (heat?, poisson?);
         if control.is_cancelled() {
             return Err(MeshSolveError::Cancelled);
         }
-        control.report(0.6);
-        let poisson = Llt::try_new_with_symbolic(symbolic, b.as_ref(), Side::Lower)
-            .map_err(|e| numerical("factorisation of L", e))?;
         control.report(1.0);
-        let total = started.elapsed().as_secs_f64();
         Ok(Self {
             phases: SetupPhases {
                 underflow_guard: guard_seconds,
                 laplacian: laplacian_seconds,
-                factorisation: total - guard_seconds - laplacian_seconds,
+                curvature: curvature_seconds,
+                factorisation: factorising.elapsed().as_secs_f64(),
             },
             n,
             t,
             h,
+            roughness,
+            ring_lengths: ring_lengths(mesh, &graph),
             mass,
             faces,
             scale,
@@ -381,7 +655,8 @@ impl HeatSolver {
         let fixed = self.mass.len() * 8
             + faces * std::mem::size_of::<PlanarFace>()
             + self.component.len() * 4
-            + (self.graph.offsets.len() + self.graph.neighbours.len()) * 4;
+            + (self.graph.offsets.len() + self.graph.neighbours.len()) * 4
+            + self.ring_lengths.len() * 8;
         let per_row = 4.5 * n.max(2.0).log2() + 6.0;
         fixed + (2.0 * 8.0 * n * per_row) as usize
     }
@@ -389,6 +664,12 @@ impl HeatSolver {
     /// The time step used.
     pub fn t(&self) -> f64 {
         self.t
+    }
+
+    /// The curvature roughness `ρ` that set the time step (0 when the time
+    /// step was not adapted).
+    pub fn roughness(&self) -> f64 {
+        self.roughness
     }
 
     /// The mean edge length `h`.
@@ -477,28 +758,19 @@ impl HeatSolver {
         }
         control.report(0.8);
         let mut phi: Vec<f64> = (0..n).map(|v| phi[(v, 0)]).collect();
-        // Shift per component so that the smallest source value is 0.
-        let mut shift = vec![f64::INFINITY; self.components];
-        for s in sources {
-            let (c, val) = match *s {
-                SurfacePoint::Vertex(v) => (self.component[v as usize], phi[v as usize]),
-                SurfacePoint::Face { face, bary } => {
-                    let f = faces[face as usize];
-                    (
-                        self.component[f[0] as usize],
-                        (0..3).map(|k| bary[k] * phi[f[k] as usize]).sum(),
-                    )
-                }
-            };
-            shift[c as usize] = shift[c as usize].min(val);
-        }
+        let offset = self.offsets(mesh, sources, &phi);
         for (v, p) in phi.iter_mut().enumerate() {
             let c = self.component[v] as usize;
             *p = if has_source[c] && p.is_finite() {
-                (*p - shift[c]).max(0.0)
+                (*p - offset[c]).max(0.0)
             } else {
                 f64::INFINITY
             };
+        }
+        for s in sources {
+            if let SurfacePoint::Vertex(v) = *s {
+                phi[v as usize] = 0.0;
+            }
         }
         // One source: every reached vertex is its own (no ordering needed).
         let labels = if sources.len() == 1 {
@@ -618,7 +890,7 @@ impl HeatSolver {
         for (k, (&v, row)) in vertices.iter().zip(rows.chunks_exact_mut(n)).enumerate() {
             let col = phi.col_as_slice(k);
             let c = self.component[v as usize];
-            let shift = col[v as usize];
+            let shift = self.ring_offset(v, col).unwrap_or(col[v as usize]);
             for (w, (r, &p)) in row.iter_mut().zip(col).enumerate() {
                 *r = if self.component[w] == c && p.is_finite() {
                     (p - shift).max(0.0)
@@ -626,8 +898,98 @@ impl HeatSolver {
                     f64::INFINITY
                 };
             }
+            row[v as usize] = 0.0;
         }
         Ok(())
+    }
+
+    /// The mean of `φ_w − |p_w − p_v|` over the neighbours `w` of vertex
+    /// `v` (None without neighbours).
+    fn ring_offset(&self, v: u32, phi: &[f64]) -> Option<f64> {
+        let start = self.graph.offsets[v as usize] as usize;
+        let ring = self.graph.of(v);
+        let lengths = &self.ring_lengths[start..start + ring.len()];
+        let (mut sum, mut count) = (0.0, 0usize);
+        for (&w, &l) in ring.iter().zip(lengths) {
+            if phi[w as usize].is_finite() {
+                sum += phi[w as usize] - l;
+                count += 1;
+            }
+        }
+        (count > 0).then(|| sum / count as f64)
+    }
+
+    /// The constant removed from `φ` in each component: the mean of
+    /// `φ_w − d_w` over the vertices `w` whose distance `d_w` to the
+    /// sources is known exactly (the neighbours of a source vertex, at
+    /// their edge lengths; the corners of a source face, at their distance
+    /// in the face's plane; the smallest where several sources give one),
+    /// or the smallest `φ` at the sources where a component has none.
+    ///
+    /// Pinning `φ` to 0 at the source instead (Crane et al.; Sharp and
+    /// Crane) leaves the offset of the rounded tip of the cone that the
+    /// Poisson step makes of `|x|`, about `−0.15 h` on a sphere at any
+    /// resolution: a mean relative error of 0.475 % at 41k vertices
+    /// against 0.199 % with the offset fitted on the one-ring.
+    fn offsets(&self, mesh: &TriMesh, sources: &[SurfacePoint], phi: &[f64]) -> Vec<f64> {
+        let faces = mesh.faces();
+        let mut is_source = std::collections::HashSet::new();
+        for s in sources {
+            if let SurfacePoint::Vertex(v) = *s {
+                is_source.insert(v);
+            }
+        }
+        let mut known = std::collections::BTreeMap::<u32, f64>::new();
+        let mut keep = |w: u32, d: f64| {
+            if !is_source.contains(&w) {
+                let e = known.entry(w).or_insert(f64::INFINITY);
+                *e = e.min(d);
+            }
+        };
+        let mut fallback = vec![f64::INFINITY; self.components];
+        for s in sources {
+            match *s {
+                SurfacePoint::Vertex(v) => {
+                    let start = self.graph.offsets[v as usize] as usize;
+                    let ring = self.graph.of(v);
+                    for (&w, &l) in ring.iter().zip(&self.ring_lengths[start..]) {
+                        keep(w, l);
+                    }
+                    let c = self.component[v as usize] as usize;
+                    fallback[c] = fallback[c].min(phi[v as usize]);
+                }
+                SurfacePoint::Face { face, bary } => {
+                    let f = faces[face as usize];
+                    let p = f.map(|v| mesh.position(v));
+                    let at: [f64; 3] =
+                        [0, 1, 2].map(|i| (0..3).map(|k| bary[k] * p[k][i]).sum::<f64>());
+                    for k in 0..3 {
+                        keep(f[k], norm(sub(p[k], at)));
+                    }
+                    let c = self.component[f[0] as usize] as usize;
+                    let val = (0..3).map(|k| bary[k] * phi[f[k] as usize]).sum::<f64>();
+                    fallback[c] = fallback[c].min(val);
+                }
+            }
+        }
+        let mut sum = vec![0.0; self.components];
+        let mut count = vec![0usize; self.components];
+        for (&w, &d) in &known {
+            if phi[w as usize].is_finite() {
+                let c = self.component[w as usize] as usize;
+                sum[c] += phi[w as usize] - d;
+                count[c] += 1;
+            }
+        }
+        (0..self.components)
+            .map(|c| {
+                if count[c] > 0 {
+                    sum[c] / count[c] as f64
+                } else {
+                    fallback[c]
+                }
+            })
+            .collect()
     }
 
     fn labels(&self, mesh: &TriMesh, sources: &[SurfacePoint], phi: &[f64]) -> Vec<i32> {
