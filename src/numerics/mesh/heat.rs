@@ -36,7 +36,7 @@
 //!
 //! # Time step
 //!
-//! `t = m h² min(1, √(ρ₀ / ρ))`, `h` the mean edge length, `m = 1` by
+//! `t = m h² clamp(√(ρ₀ / ρ), ½, 1)`, `h` the mean edge length, `m = 1` by
 //! default, `ρ` the curvature roughness (how far the Gaussian curvature,
 //! smoothed over about four edges, strays from its mean, in units of
 //! `h⁻²`; [`ROUGHNESS_REFERENCE`] `ρ₀ = 3·10⁻³`). A time step smooths the
@@ -95,7 +95,7 @@ pub struct HeatOptions {
     /// Raise `t` where needed so that the heat does not underflow (default true).
     pub underflow_guard: bool,
     /// Lower `t` on surfaces curved at the scale of their edges (default
-    /// true): `t = m h² min(1, √(ρ₀ / ρ))`, see [`HeatSolver::new`].
+    /// true): `t = m h² clamp(√(ρ₀ / ρ), ½, 1)`, see the module docs.
     pub adapt: bool,
     /// The Laplacian (default [`Laplacian::Robust`]).
     pub laplacian: Laplacian,
@@ -199,10 +199,18 @@ const ROUGHNESS_SMOOTHING: f64 = 16.0;
 /// and 1.18·10⁻².
 const ROUGHNESS_ITERATIONS: usize = 40;
 
-/// The factor `min(1, √(ρ₀ / ρ))` applied to `m h²`.
+/// Smallest factor of the time-step rule: below `t = m h² / 2` the
+/// discretisation error takes over even on the roughest scans (a
+/// 3.9k-vertex decimated dragon, `ρ = 0.033`: 1.38 % at ½, 2.19 % at 0.3).
+pub const MIN_ADAPT_FACTOR: f64 = 0.5;
+
+/// The factor `√(ρ₀ / ρ)` applied to `m h²`, clamped to
+/// `[MIN_ADAPT_FACTOR, 1]`.
 fn adapt_factor(roughness: f64) -> f64 {
     if roughness > ROUGHNESS_REFERENCE {
-        (ROUGHNESS_REFERENCE / roughness).sqrt()
+        (ROUGHNESS_REFERENCE / roughness)
+            .sqrt()
+            .max(MIN_ADAPT_FACTOR)
     } else {
         1.0
     }

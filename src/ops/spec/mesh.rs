@@ -128,7 +128,7 @@ pub struct HeatSpec {
     #[serde(default)]
     pub laplacian: LaplacianSpec,
     /// Lower the time step on surfaces curved at the scale of their edges:
-    /// `t = m·h²·min(1, √(ρ₀/ρ))`, `ρ` the mean distance of the Gaussian
+    /// `t = m·h²·clamp(√(ρ₀/ρ), ½, 1)`, `ρ` the mean distance of the Gaussian
     /// curvature, smoothed over about four edges, from its mean over the
     /// surface, in units of `h⁻²` (reported as `heat.roughness`),
     /// `ρ₀ = 0.003`. Smoothing by a time step of `h²`
