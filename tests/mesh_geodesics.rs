@@ -486,12 +486,19 @@ fn farthest_point_sampling_covers_the_sphere() {
 
 /// Heat distances from vertex 0 with the given Laplacian.
 fn heat_with(mesh: &TriMesh, laplacian: Laplacian) -> (Vec<f64>, HeatSolver) {
+    heat_from_vertex_0(
+        mesh,
+        &HeatOptions {
+            laplacian,
+            ..Default::default()
+        },
+    )
+}
+
+/// Heat distances from vertex 0 with `opts`, and the solver.
+fn heat_from_vertex_0(mesh: &TriMesh, opts: &HeatOptions) -> (Vec<f64>, HeatSolver) {
     let topo = Topology::new(mesh);
-    let opts = HeatOptions {
-        laplacian,
-        ..Default::default()
-    };
-    let solver = HeatSolver::new(mesh, &topo, &opts, &Control::new()).unwrap();
+    let solver = HeatSolver::new(mesh, &topo, opts, &Control::new()).unwrap();
     let d = solver
         .distance(
             mesh,
@@ -764,22 +771,13 @@ fn bumpy_sphere(level: u32, amplitude: f64, k: f64) -> TriMesh {
 
 /// Heat distances from vertex 0 with the time step adapted or not.
 fn heat_adapted(mesh: &TriMesh, adapt: bool) -> (Vec<f64>, HeatSolver) {
-    let topo = Topology::new(mesh);
-    let opts = HeatOptions {
-        adapt,
-        ..Default::default()
-    };
-    let solver = HeatSolver::new(mesh, &topo, &opts, &Control::new()).unwrap();
-    let d = solver
-        .distance(
-            mesh,
-            &[SurfacePoint::Vertex(0)],
-            f64::INFINITY,
-            &Control::new(),
-        )
-        .unwrap()
-        .distance;
-    (d, solver)
+    heat_from_vertex_0(
+        mesh,
+        &HeatOptions {
+            adapt,
+            ..Default::default()
+        },
+    )
 }
 
 /// The time step follows the curvature: a sphere (constant curvature, at
