@@ -184,7 +184,8 @@ pub struct HeatSolver {
 }
 
 /// Reference roughness `ρ₀` of the time-step rule: `t = m h²` up to
-/// `ρ = ρ₀`, `m h² √(ρ₀ / ρ)` above (see [`HeatSolver::new`]).
+/// `ρ = ρ₀`, `m h² √(ρ₀ / ρ)` above, down to `m h² / 2` (see the module
+/// docs).
 pub const ROUGHNESS_REFERENCE: f64 = 3e-3;
 
 /// Smoothing time of the roughness estimate in units of `h²`: the kernel
@@ -271,6 +272,7 @@ fn roughness(
     defects: &[f64],
     (component, components): (&[u32], usize),
     h: f64,
+    control: &Control<'_>,
 ) -> f64 {
     let n = mass.len();
     let s = ROUGHNESS_SMOOTHING * h * h;
@@ -302,6 +304,10 @@ fn roughness(
     let mut rz = dot(&r, &z);
     let mut ap = vec![[0.0; 2]; n];
     for _ in 0..ROUGHNESS_ITERATIONS {
+        if control.is_cancelled() {
+            // The caller checks the flag after the join and stops.
+            return 0.0;
+        }
         lap.apply(s, mass, &p, &mut ap);
         let pap = dot(&p, &ap);
         let alpha = [0, 1].map(|c| if pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
@@ -596,7 +602,14 @@ impl HeatSolver {
             || {
                 let began = std::time::Instant::now();
                 let rho = if options.adapt {
-                    roughness(&lap, &mass, &defects, (&topo.component, topo.components), h)
+                    roughness(
+                        &lap,
+                        &mass,
+                        &defects,
+                        (&topo.component, topo.components),
+                        h,
+                        control,
+                    )
                 } else {
                     0.0
                 };
@@ -604,6 +617,9 @@ impl HeatSolver {
             },
         );
         let symbolic = symbolic?;
+        if control.is_cancelled() {
+            return Err(MeshSolveError::Cancelled);
+        }
         let (roughness, curvature_seconds) = rough;
         let t = (options.m * h * h * adapt_factor(roughness)).max(floor);
         let a = lap.matrix(t, &|i| mass[i]);
@@ -1072,6 +1088,47 @@ impl HeatSolver {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The roughness of a sphere is that of constant curvature (near 0)
+    /// and stays so however the mesh is refined; a cancelled control stops
+    /// the iterations (0 returned, the caller reports the cancellation).
+    #[test]
+    fn roughness_is_near_zero_on_a_sphere_and_stops_when_cancelled() {
+        let mesh = super::super::shapes::icosphere(3, 1.0);
+        let topo = Topology::new(&mesh);
+        let solver =
+            HeatSolver::new(&mesh, &topo, &HeatOptions::default(), &Control::new()).unwrap();
+        assert!(solver.roughness() < 1e-4, "{}", solver.roughness());
+        let n = mesh.num_vertices();
+        let mut edges = Vec::new();
+        let mut mass = vec![0.0; n];
+        for f in mesh.faces() {
+            let p = f.map(|v| mesh.position(v));
+            let l = [0, 1, 2].map(|k| norm(sub(p[(k + 1) % 3], p[k])));
+            let area = triangle_area(l[0], l[1], l[2]);
+            let c = cotangents(l, area);
+            for k in 0..3 {
+                mass[f[k] as usize] += area / 3.0;
+                edges.push((f[(k + 1) % 3], f[(k + 2) % 3], 0.5 * c[k]));
+            }
+        }
+        let lap = LowerLaplacian::assemble(n, &edges);
+        let defects = angle_defects(&mesh, &topo);
+        let h = mesh.mean_edge_length();
+        let parts = (&topo.component[..], topo.components);
+        let live = roughness(&lap, &mass, &defects, parts, h, &Control::new());
+        assert!(live > 0.0 && live < 1e-4, "{live}");
+        let flag = std::sync::atomic::AtomicBool::new(true);
+        let stopped = roughness(
+            &lap,
+            &mass,
+            &defects,
+            parts,
+            h,
+            &Control::new().with_cancel(&flag),
+        );
+        assert_eq!(stopped, 0.0);
+    }
 
     /// The bucketed assembly equals the dense sum of the corner weights:
     /// shared edges summed, the diagonal first and rows ascending in every
