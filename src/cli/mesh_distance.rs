@@ -90,15 +90,15 @@ pub enum LaplacianArg {
 }
 
 impl LaplacianArg {
-    /// The request's heat options with `m`.
-    pub fn heat(self, m: f64) -> HeatSpec {
+    /// The request's heat options with `m` and `adapt`.
+    pub fn heat(self, m: f64, adapt: bool) -> HeatSpec {
         HeatSpec {
             m,
             laplacian: match self {
                 LaplacianArg::Robust => LaplacianSpec::Robust,
                 LaplacianArg::Cotangent => LaplacianSpec::Cotangent,
             },
-            adapt: true,
+            adapt,
         }
     }
 }
@@ -242,10 +242,7 @@ pub fn run(args: &MeshDistanceArgs) -> Result<(), String> {
         max_distance: args.max_distance,
         weights: metric.weights,
         metric: metric.metric,
-        heat: HeatSpec {
-            adapt: args.heat_adapt,
-            ..args.laplacian.heat(args.heat_m)
-        },
+        heat: args.laplacian.heat(args.heat_m, args.heat_adapt),
     };
     let files = metric.files;
     let vertices = args.source_vertices.len();

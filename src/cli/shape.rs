@@ -55,6 +55,10 @@ pub struct DistanceMatrixArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
+    /// Heat method: lower t on surfaces curved at the scale of their edges
+    /// (the request's `heat.adapt`); false gives t = m h².
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub heat_adapt: bool,
     /// Heat method Laplacian.
     #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
     pub laplacian: LaplacianArg,
@@ -95,6 +99,10 @@ pub struct EmbedArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
+    /// Heat method: lower t on surfaces curved at the scale of their edges
+    /// (the request's `heat.adapt`); false gives t = m h².
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub heat_adapt: bool,
     /// Heat method Laplacian.
     #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
     pub laplacian: LaplacianArg,
@@ -125,6 +133,10 @@ pub struct DescriptorArgs {
     /// Heat method time step factor m (t = m h²).
     #[arg(long, default_value_t = 1.0)]
     pub heat_m: f64,
+    /// Heat method: lower t on surfaces curved at the scale of their edges
+    /// (the request's `heat.adapt`); false gives t = m h².
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub heat_adapt: bool,
     /// Heat method Laplacian.
     #[arg(long, value_enum, default_value_t = LaplacianArg::Robust)]
     pub laplacian: LaplacianArg,
@@ -173,7 +185,7 @@ pub fn run_distance_matrix(args: &DistanceMatrixArgs) -> Result<(), String> {
         } else {
             SymmetrySpec::Average
         },
-        heat: args.laplacian.heat(args.heat_m),
+        heat: args.laplacian.heat(args.heat_m, args.heat_adapt),
     };
     let input = load_mesh_file(&args.mesh)?;
     let flags = mesh_flags()
@@ -205,7 +217,7 @@ pub fn run_embed(args: &EmbedArgs) -> Result<(), String> {
             tolerance: 1e-6,
         }),
         method: method(args.method),
-        heat: args.laplacian.heat(args.heat_m),
+        heat: args.laplacian.heat(args.heat_m, args.heat_adapt),
     };
     let output = run_on_mesh(Box::new(request), &args.mesh)?;
     let form = output
@@ -237,7 +249,7 @@ pub fn run_descriptor(args: &DescriptorArgs) -> Result<(), String> {
         landmarks: args.landmarks,
         bins: args.bins,
         method: method(args.method),
-        heat: args.laplacian.heat(args.heat_m),
+        heat: args.laplacian.heat(args.heat_m, args.heat_adapt),
     };
     let output = run_on_mesh(Box::new(request), &args.mesh)?;
     let text = serde_json::to_string_pretty(&output.document["descriptor"])
