@@ -20,6 +20,14 @@
 //! angles; `C` is then also updated from the virtual triangles `C A V'` and
 //! `C V' B` (and re-updated when `V` is frozen).
 //!
+//! **Start.** Without tensors the march starts from the exact polyhedral
+//! distances on six rings around each source ([`super::exact_seeds`];
+//! under weights where `W` is constant on those rings), kept only where a
+//! chord bound proves them exact: the cone at a point source is where a first-order update
+//! errs most, and that error would otherwise be carried by the whole
+//! front (0.59 % mean error on the 41k-vertex icosphere from the plain
+//! start, 0.38 % from the exact one, at the same speed).
+//!
 //! **Weights.** `W` is per vertex; a triangle update uses the mean of its
 //! corners' weights (weighted geodesics, `W = 1` the geodesic distance).
 //!
@@ -53,6 +61,7 @@
 //! few tens); a corner that finds no `V'` falls back to the plain update
 //! (edges and its own triangle), which stays an upper bound.
 
+use super::exact_seeds::{exact_seeds, EXACT_SEED_RINGS};
 use super::sources::{check_weights, seeds, tensor_seeds, Seed};
 use super::{dot, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh, NONE};
 use crate::numerics::heap::IndexedHeap;
@@ -69,6 +78,10 @@ pub struct FastMarchingOptions<'a> {
     pub tensors: Option<&'a [[f64; 6]]>,
     /// Vertices farther than this keep `+inf` (default `+inf`).
     pub max_distance: f64,
+    /// Start from the exact distances on a few rings around each source
+    /// ([`super::exact_seeds`]; under weights, where they are constant
+    /// around the source; not under tensors). Default true.
+    pub exact_start: bool,
 }
 
 impl Default for FastMarchingOptions<'_> {
@@ -77,6 +90,7 @@ impl Default for FastMarchingOptions<'_> {
             weights: None,
             tensors: None,
             max_distance: f64::INFINITY,
+            exact_start: true,
         }
     }
 }
@@ -389,7 +403,18 @@ pub fn fast_marching_distance(
         return Ok(out);
     }
     let prep = MarchPrep::new(mesh, topo);
-    let seeds = seeds(mesh, sources, options.weights)?;
+    let seeds = if options.exact_start {
+        exact_seeds(
+            mesh,
+            topo,
+            sources,
+            options.weights,
+            EXACT_SEED_RINGS,
+            control,
+        )?
+    } else {
+        seeds(mesh, sources, options.weights)?
+    };
     march(
         mesh,
         &prep,

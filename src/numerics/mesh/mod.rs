@@ -8,6 +8,7 @@
 pub mod curvature;
 pub mod design;
 pub mod dijkstra;
+pub mod exact_seeds;
 pub mod fast_marching;
 pub mod heat;
 pub mod intrinsic;

@@ -104,6 +104,7 @@ pub fn mesh_distance(
                 weights: options.weights,
                 tensors: options.tensors,
                 max_distance: options.max_distance,
+                ..Default::default()
             },
             control,
         ),

@@ -34,11 +34,12 @@ use rayon::prelude::*;
 use super::graph::{par_rows, Graph};
 use super::ShapeError;
 use crate::numerics::mesh::exact::exact_distance_threads;
+use crate::numerics::mesh::exact_seeds::{exact_seeds, EXACT_SEED_RINGS};
 use crate::numerics::mesh::fast_marching::{
     check_tensors, march, march_metric, MarchPrep, MarchWork, Metric,
 };
 use crate::numerics::mesh::sampling::{farthest_point_sampling, SamplingOptions};
-use crate::numerics::mesh::sources::{check_weights, seeds, tensor_seeds, VertexGraph};
+use crate::numerics::mesh::sources::{check_weights, tensor_seeds, VertexGraph};
 use crate::numerics::mesh::{
     norm, sub, HeatOptions, HeatSolver, MeshDistance, MeshMethod, SurfacePoint, Topology, TriMesh,
 };
@@ -163,7 +164,8 @@ pub fn distance_rows_in(
                 };
                 match metric {
                     Metric::Weights(w) => {
-                        let seeds = seeds(mesh, &source, w).map_err(solve)?;
+                        let seeds = exact_seeds(mesh, topo, &source, w, EXACT_SEED_RINGS, &inner)
+                            .map_err(solve)?;
                         march(mesh, &prep, &seeds, w, f64::INFINITY, &mut out, &inner)
                     }
                     Metric::Faces(t) => {
