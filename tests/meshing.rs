@@ -372,7 +372,11 @@ fn an_adapted_image_mesh_beats_the_uniform_one() {
         })
         .collect();
     let run = |metric| {
-        let options = ImageMeshOptions { count: 200, metric };
+        let options = ImageMeshOptions {
+            count: 200,
+            metric,
+            flips: false,
+        };
         let m = mesh_image(&grid, &image, &options, &Control::new()).expect("mesh");
         assert!(check_planar(&m.points, &m.triangles).is_empty());
         assert!((area(&m.points, &m.triangles) - 99.0 * 99.0).abs() < 1e-6);
@@ -424,6 +428,56 @@ fn an_adapted_image_mesh_beats_the_uniform_one() {
     );
 }
 
+/// Data-dependent flips (`flips: true`) keep the vertices, lower the error
+/// of the interpolation and leave a valid triangulation of the rectangle.
+#[test]
+fn data_dependent_flips_lower_the_error_and_keep_a_triangulation() {
+    use geodex::numerics::meshing::{mesh_image, ImageMeshOptions, ImageMetric};
+    let (n0, n1) = (100usize, 100usize);
+    let grid = Grid::unit(&[n0, n1]).expect("grid");
+    let image: Vec<f64> = (0..n0 * n1)
+        .map(|i| {
+            let (r, c) = ((i / n1) as f64 - 48.0, (i % n1) as f64 - 52.0);
+            1.0 / (1.0 + ((r.hypot(c) - 30.0) / 1.5).exp())
+        })
+        .collect();
+    for metric in [
+        ImageMetric::Uniform,
+        ImageMetric::StructureTensor {
+            sigma: 1.0,
+            rho: 1.0,
+            strength: 32.0,
+            anisotropy: 4.0,
+        },
+    ] {
+        let run = |flips| {
+            let options = ImageMeshOptions {
+                count: 200,
+                metric,
+                flips,
+            };
+            mesh_image(&grid, &image, &options, &Control::new()).expect("mesh")
+        };
+        let (dual, flipped) = (run(false), run(true));
+        println!(
+            "{metric:?}: {} flips, L2 {:.5} -> {:.5}",
+            flipped.flips, dual.l2_error, flipped.l2_error
+        );
+        assert_eq!(dual.points, flipped.points);
+        assert_eq!(dual.triangles.len(), flipped.triangles.len());
+        assert!(flipped.flips > 0);
+        assert!(
+            flipped.l2_error < 0.95 * dual.l2_error,
+            "{} vs {}",
+            flipped.l2_error,
+            dual.l2_error
+        );
+        assert!(check_planar(&flipped.points, &flipped.triangles).is_empty());
+        assert!((area(&flipped.points, &flipped.triangles) - 99.0 * 99.0).abs() < 1e-6);
+        assert!(flipped.approximation.iter().all(|v| v.is_finite()));
+    }
+}
+
 /// Anisotropic image meshing: on a sharp straight edge (a smoothed step
 /// across a slanted line) both anisotropic metrics give a valid
 /// triangulation of the rectangle whose interpolation error is below the
@@ -443,7 +497,11 @@ fn anisotropic_image_meshes_are_valid_and_beat_the_uniform_mesh_on_an_edge() {
         mesh_image(
             &grid,
             &image,
-            &ImageMeshOptions { count, metric },
+            &ImageMeshOptions {
+                count,
+                metric,
+                flips: false,
+            },
             &Control::new(),
         )
         .expect("mesh")

@@ -376,6 +376,10 @@ pub struct MeshArgs {
     /// Skip the uniform mesh of the same vertex count.
     #[arg(long)]
     pub no_compare: bool,
+    /// Flip edges while that lowers the L2 error (a data-dependent
+    /// triangulation of the same vertices; the uniform mesh too).
+    #[arg(long)]
+    pub flips: bool,
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
@@ -1131,10 +1135,12 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         anisotropy: args.anisotropy,
         rho: args.rho,
         compare_uniform: !args.no_compare,
+        flips: args.flips,
         spacing: args.spacing.spacing.clone(),
     };
     let flags = grid_flags()
         .field("dataset", "--image")
+        .field("flips", "--flips")
         .field("compare_uniform", "--no-compare");
     let (out, secs) = execute(&request, &inputs, None, &flags)?;
     let Some(mesh) = &out.mesh else {

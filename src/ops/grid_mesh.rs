@@ -81,6 +81,11 @@ pub struct GridMeshRequest {
     #[serde(default = "two")]
     #[schema(minimum = 0.0)]
     pub rho: f64,
+    /// After the geodesic Delaunay dual, flip edges while that lowers the
+    /// L2 error of the interpolation (a data-dependent triangulation of the
+    /// same vertices; the uniform comparison mesh gets the same). Default false.
+    #[serde(default)]
+    pub flips: bool,
     /// Also mesh uniformly with the same vertex count and report its error. Default true.
     #[serde(default = "yes")]
     pub compare_uniform: bool,
@@ -235,6 +240,7 @@ impl Operation for GridMeshRequest {
                 &ImageMeshOptions {
                     count: self.count,
                     metric,
+                    flips: self.flips,
                 },
                 control,
             )
@@ -252,6 +258,7 @@ impl Operation for GridMeshRequest {
                 "triangles": m.triangles.len(),
                 "l2_error": m.l2_error,
                 "added": m.added,
+                "flips": m.flips,
             })
         };
         let mut stats = serde_json::json!({
@@ -267,6 +274,7 @@ impl Operation for GridMeshRequest {
                 "boundary": mesh.repaired.boundary,
             },
             "covering_radius": mesh.covering_radius,
+            "flips": mesh.flips,
             "seconds": seconds,
         });
         if let Some(u) = &uniform {

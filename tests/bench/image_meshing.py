@@ -3,7 +3,7 @@
 the piecewise-linear approximation on a uniform, a gradient-adapted, a
 Hessian-adapted (isotropic) and two anisotropic (absolute Hessian
 det^(-1/6)|H|, structure tensor) geodesic Delaunay meshes with the same
-vertex count.
+vertex count; with `--flips`, each also after data-dependent edge flips.
 
 Needs a venv with scikit-image and numpy (the image only) and a geodex binary:
 
@@ -34,6 +34,8 @@ def main():
     ap.add_argument("--count", type=int, default=2000)
     ap.add_argument("--sigma", type=float, default=1.0)
     ap.add_argument("--strength", type=float, default=8.0)
+    ap.add_argument("--flips", action="store_true",
+                    help="also run every metric with data-dependent edge flips (`geodex mesh --flips`)")
     args = ap.parse_args()
     image = data.camera().astype(np.float64) / 255.0
     rows = []
@@ -49,7 +51,11 @@ def main():
                 ("hessian", args.sigma, args.strength, []),
                 ("anisotropic-hessian", 1.0, 20.0, ["--anisotropy", "8"]),
                 ("structure-tensor", 1.0, 32.0, ["--anisotropy", "4", "--rho", "1"])]
+        if args.flips:
+            runs = [r for run in runs for r in [run, (run[0], run[1], run[2], run[3] + ["--flips"])]]
         for metric, sigma, strength, extra in runs:
+            flips = "--flips" in extra
+            metric_name = metric + (" + flips" if flips else "")
             out = os.path.join(tmp, f"{metric}.ply")
             stats = os.path.join(tmp, f"{metric}.json")
             cmd = [args.geodex, "mesh", "--image", path, "--count", str(args.count),
@@ -61,7 +67,7 @@ def main():
             seconds = time.perf_counter() - t0
             with open(stats) as f:
                 s = json.load(f)["stats"]
-            row = {"metric": metric, "vertices": s["vertices"], "triangles": s["triangles"],
+            row = {"metric": metric_name, "vertices": s["vertices"], "triangles": s["triangles"],
                    "added": s["added"], "l2_error": s["l2_error"], "seconds": seconds}
             print(json.dumps(row))
             rows.append(row)

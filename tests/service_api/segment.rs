@@ -528,6 +528,25 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
     );
     // The same request runs as a job (one registry line).
     assert!(geodex::ops::registry::find("grid.mesh").is_some());
+    // With data-dependent flips: the same vertices, a lower error, and the
+    // uniform comparison flipped too.
+    let res = post(
+        &app,
+        "/v1/grid/mesh",
+        json!({"dataset": id, "count": 80, "flips": true}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let flipped: serde_json::Value = res.json().await.expect("json");
+    let f = &flipped["stats"];
+    assert_eq!(f["vertices"], stats["vertices"], "{f}");
+    assert!(f["flips"].as_u64().expect("flips") > 0, "{f}");
+    assert!(
+        f["uniform"]["flips"].as_u64().expect("uniform flips") > 0,
+        "{f}"
+    );
+    assert!(f["l2_error"].as_f64().expect("e") < e, "{f}");
+    assert_eq!(stats["flips"], 0, "{stats}");
 }
 
 #[tokio::test]

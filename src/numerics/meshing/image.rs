@@ -25,6 +25,10 @@
 //! The uniform metric (`W = 1`) gives the mesh of the same vertex count to
 //! compare with.
 //!
+//! With [`ImageMeshOptions::flips`] the dual is then improved by
+//! data-dependent edge flips ([`super::image_flips`]): same vertices, a
+//! triangulation whose interpolant has a lower L2 error.
+//!
 //! # Anisotropic metrics
 //!
 //! An isotropic metric can only make triangles smaller; along an edge or a
@@ -56,6 +60,7 @@
 
 use std::borrow::Cow;
 
+use super::image_flips::flip_to_image;
 use crate::numerics::anisotropic::structure_tensor::structure_tensor;
 use crate::numerics::anisotropic::{TensorError, TensorField};
 use crate::numerics::control::Control;
@@ -118,6 +123,10 @@ pub struct ImageMeshOptions {
     pub count: usize,
     /// The metric.
     pub metric: ImageMetric,
+    /// After the Delaunay dual, flip edges while that lowers the L2 error
+    /// ([`super::image_flips`]): a data-dependent triangulation of the same
+    /// vertices.
+    pub flips: bool,
 }
 
 /// A mesh of an image and the image's approximation on it.
@@ -141,6 +150,8 @@ pub struct ImageMesh {
     pub repaired: RepairCounts,
     /// The covering radius of the samples in the metric.
     pub covering_radius: f64,
+    /// Edges flipped to lower the error (0 without `flips`).
+    pub flips: usize,
 }
 
 /// Why an image could not be meshed.
@@ -451,6 +462,19 @@ pub fn mesh_image(
         .iter()
         .map(|p| image[p[0] as usize * n1 + p[1] as usize])
         .collect();
+    let flips = if options.flips {
+        flip_to_image(
+            [n0, n1],
+            &d.points,
+            &mut d.dual.triangles,
+            &values,
+            image,
+            control,
+        )?
+        .flips
+    } else {
+        0
+    };
     let approximation = piecewise_linear([n0, n1], &d.points, &d.dual.triangles, &values);
     let sq: f64 = image
         .iter()
@@ -473,6 +497,7 @@ pub fn mesh_image(
         values,
         approximation,
         cost: w,
+        flips,
     })
 }
 

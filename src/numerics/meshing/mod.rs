@@ -9,6 +9,7 @@
 //! * [`image`]: image meshing (section 4.3, Bougleux, Peyré and Cohen): a
 //!   metric from the image, its triangulation, the piecewise-linear
 //!   approximation of the image on it and its L2 error.
+//! * [`image_flips`]: data-dependent edge flips that lower that error.
 //! * [`surface`]: surface remeshing (sections 4.4 and 4.6): geodesic
 //!   sampling, geodesic Lloyd relaxation and the dual of the Voronoi cells.
 //! * [`surface_relax`]: the remesh's last step: edge flips and tangential
@@ -16,6 +17,7 @@
 
 pub mod domain;
 pub mod image;
+pub mod image_flips;
 pub mod surface;
 pub mod surface_relax;
 
