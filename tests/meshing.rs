@@ -357,6 +357,16 @@ fn lloyd_lowers_the_energy_and_makes_hexagons() {
     assert!((mean - 6.0).abs() <= 0.2, "mean neighbour count {mean}");
 }
 
+/// A disc of radius 30 around (48, 52) with a smooth edge (width 1.5).
+fn smooth_disc(n0: usize, n1: usize) -> Vec<f64> {
+    (0..n0 * n1)
+        .map(|i| {
+            let (r, c) = ((i / n1) as f64 - 48.0, (i % n1) as f64 - 52.0);
+            1.0 / (1.0 + ((r.hypot(c) - 30.0) / 1.5).exp())
+        })
+        .collect()
+}
+
 /// A smooth disc edge: the gradient-adapted mesh approximates it with a
 /// clearly smaller L2 error than the uniform mesh of the same vertex count,
 /// and both are valid triangulations covering the image.
@@ -365,12 +375,7 @@ fn an_adapted_image_mesh_beats_the_uniform_one() {
     use geodex::numerics::meshing::{mesh_image, ImageMeshOptions, ImageMetric};
     let (n0, n1) = (100usize, 100usize);
     let grid = Grid::unit(&[n0, n1]).expect("grid");
-    let image: Vec<f64> = (0..n0 * n1)
-        .map(|i| {
-            let (r, c) = ((i / n1) as f64 - 48.0, (i % n1) as f64 - 52.0);
-            1.0 / (1.0 + ((r.hypot(c) - 30.0) / 1.5).exp())
-        })
-        .collect();
+    let image = smooth_disc(n0, n1);
     let run = |metric| {
         let options = ImageMeshOptions {
             count: 200,
@@ -435,12 +440,7 @@ fn data_dependent_flips_lower_the_error_and_keep_a_triangulation() {
     use geodex::numerics::meshing::{mesh_image, ImageMeshOptions, ImageMetric};
     let (n0, n1) = (100usize, 100usize);
     let grid = Grid::unit(&[n0, n1]).expect("grid");
-    let image: Vec<f64> = (0..n0 * n1)
-        .map(|i| {
-            let (r, c) = ((i / n1) as f64 - 48.0, (i % n1) as f64 - 52.0);
-            1.0 / (1.0 + ((r.hypot(c) - 30.0) / 1.5).exp())
-        })
-        .collect();
+    let image = smooth_disc(n0, n1);
     for metric in [
         ImageMetric::Uniform,
         ImageMetric::StructureTensor {

@@ -35,7 +35,7 @@
 use std::collections::HashMap;
 
 use super::exact::exact_distance_threads;
-use super::sources::{seeds, Seed};
+use super::sources::{keep_smallest, seeds, Seed};
 use super::{norm, sub, MeshSolveError, SurfacePoint, Topology, TriMesh};
 use crate::numerics::Control;
 
@@ -80,13 +80,7 @@ pub fn exact_seeds(
         let patch = patch_seeds(mesh, topo, source, label as i32, weights, rings, control)?;
         out.extend(patch);
     }
-    out.sort_by(|a, b| {
-        a.vertex
-            .cmp(&b.vertex)
-            .then(a.distance.total_cmp(&b.distance))
-            .then(a.label.cmp(&b.label))
-    });
-    out.dedup_by_key(|s| s.vertex);
+    keep_smallest(&mut out);
     Ok(out)
 }
 

@@ -83,15 +83,20 @@ fn seeds_with(
             }
         }
     }
-    // Keep the smallest value per vertex (stable: lower label wins ties).
-    out.sort_by(|a, b| {
+    keep_smallest(&mut out);
+    Ok(out)
+}
+
+/// Keeps the smallest value per vertex, sorted by vertex (the lower label
+/// wins a tie).
+pub fn keep_smallest(seeds: &mut Vec<Seed>) {
+    seeds.sort_by(|a, b| {
         a.vertex
             .cmp(&b.vertex)
             .then(a.distance.total_cmp(&b.distance))
             .then(a.label.cmp(&b.label))
     });
-    out.dedup_by_key(|s| s.vertex);
-    Ok(out)
+    seeds.dedup_by_key(|s| s.vertex);
 }
 
 /// Checks a per-vertex weight `W` (length, finite, > 0).
