@@ -15,8 +15,10 @@
 //! lies on the edges whose two ends are at exactly that many hops.
 //!
 //! **Which values are exact.** Let `r` be the smallest Euclidean distance
-//! from the source point to those frontier edges (segments in space). A
-//! path that leaves the patch crosses the frontier at some point `q`, so it
+//! from the source point to those frontier edges (segments in space) and
+//! to the vertices six hops away that have a face outside the patch (a
+//! non-manifold vertex can join the patch to another fan without an edge).
+//! A path that leaves the patch crosses the frontier at some point `q`, so it
 //! is longer than `|p − q| ≥ r` (a geodesic is never shorter than the
 //! chord). A patch vertex whose distance on the patch `d_P(v)` is below
 //! `r` therefore has a shortest path that stays in the patch: `d(v) =
@@ -158,6 +160,19 @@ fn patch_seeds(
             }
         }
         tris.push(c.map(|v| local[&v]));
+    }
+    // A vertex where the patch meets a face outside it without an edge (a
+    // non-manifold vertex joining two fans) is a way out too. (A path out
+    // through such a vertex only matters if it comes back in through
+    // another one: through a frontier edge it is already longer than `r`.)
+    for &x in order.iter().filter(|v| hops[v] == rings) {
+        if topo
+            .faces_of(x)
+            .iter()
+            .any(|f| faces.binary_search(f).is_err())
+        {
+            r = r.min(norm(sub(p, mesh.position(x))));
+        }
     }
     let positions = order.iter().map(|&v| mesh.position(v)).collect();
     // A patch the container refuses (it checks scales) is left to the march.
