@@ -23,10 +23,13 @@
 //! **Start.** Without tensors the march starts from the exact polyhedral
 //! distances on six rings around each source ([`super::exact_seeds`];
 //! under weights where `W` is constant on those rings), kept only where a
-//! chord bound proves them exact: the cone at a point source is where a first-order update
-//! errs most, and that error would otherwise be carried by the whole
-//! front (0.59 % mean error on the 41k-vertex icosphere from the plain
-//! start, 0.38 % from the exact one, at the same speed).
+//! chord bound proves them exact: the cone at a point source is where a
+//! first-order update errs most, and that error would otherwise be carried
+//! by the whole front (0.59 % mean error on the 41k-vertex icosphere from
+//! the plain start, 0.38 % from the exact one, at the same speed). A patch
+//! costs about what the march spends on a few hundred vertices, so this
+//! start serves up to `1 + n / 4096` sources
+//! ([`super::exact_seeds::exact_start_pays`]); more sources start plainly.
 //!
 //! **Weights.** `W` is per vertex; a triangle update uses the mean of its
 //! corners' weights (weighted geodesics, `W = 1` the geodesic distance).
@@ -61,7 +64,7 @@
 //! few tens); a corner that finds no `V'` falls back to the plain update
 //! (edges and its own triangle), which stays an upper bound.
 
-use super::exact_seeds::{exact_seeds, EXACT_SEED_RINGS};
+use super::exact_seeds::{exact_seeds, exact_start_pays, EXACT_SEED_RINGS};
 use super::sources::{check_weights, seeds, tensor_seeds, Seed};
 use super::{dot, sub, MeshDistance, MeshSolveError, SurfacePoint, Topology, TriMesh, NONE};
 use crate::numerics::heap::IndexedHeap;
@@ -80,7 +83,9 @@ pub struct FastMarchingOptions<'a> {
     pub max_distance: f64,
     /// Start from the exact distances on a few rings around each source
     /// ([`super::exact_seeds`]; under weights, where they are constant
-    /// around the source; not under tensors). Default true.
+    /// around the source; not under tensors), when there are few sources
+    /// for the mesh's size ([`super::exact_seeds::exact_start_pays`]).
+    /// Default true.
     pub exact_start: bool,
 }
 
@@ -403,7 +408,7 @@ pub fn fast_marching_distance(
         return Ok(out);
     }
     let prep = MarchPrep::new(mesh, topo);
-    let seeds = if options.exact_start {
+    let seeds = if options.exact_start && exact_start_pays(sources.len(), n) {
         exact_seeds(
             mesh,
             topo,
@@ -926,6 +931,31 @@ fn topo_faces<'a>(_mesh: &TriMesh, prep: &'a MarchPrep, c: u32) -> &'a [u32] {
 mod tests {
     use super::*;
     use crate::numerics::mesh::shapes::flat_square;
+
+    /// One source starts from the exact seeds; more than `1 + n / 4096`
+    /// start plainly (the same distances as `exact_start: false`).
+    #[test]
+    fn the_exact_start_serves_few_sources() {
+        let mesh = crate::numerics::mesh::shapes::icosphere(3, 1.0);
+        let topo = Topology::new(&mesh);
+        let run = |sources: &[SurfacePoint], exact_start| {
+            let opts = FastMarchingOptions {
+                exact_start,
+                ..Default::default()
+            };
+            fast_marching_distance(&mesh, &topo, sources, &opts, &Control::new())
+                .unwrap()
+                .distance
+        };
+        let one = [SurfacePoint::Vertex(0)];
+        assert_ne!(run(&one, true), run(&one, false));
+        let two = [SurfacePoint::Vertex(0), SurfacePoint::Vertex(100)];
+        assert!(!crate::numerics::mesh::exact_seeds::exact_start_pays(
+            2,
+            mesh.num_vertices()
+        ));
+        assert_eq!(run(&two, true), run(&two, false));
+    }
 
     /// `R diag(ratio², 1) Rᵀ` with `R` the rotation by `angle` (in the plane
     /// z = 0; `zz = 1`): lengths along the direction `angle` are `ratio`
