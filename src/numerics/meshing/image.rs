@@ -501,6 +501,25 @@ pub fn mesh_image(
     })
 }
 
+/// `orient(a, b, c) > 0` when `a b c` turns counter-clockwise in the
+/// (axis 0, axis 1) plane (twice the signed area).
+pub(super) fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// The linear interpolant of the triangle `t` (corners and their values) at
+/// `x` (barycentric coordinates), if `x` is in the closed triangle (within
+/// 1e-9). The one rule of [`piecewise_linear`] and of the flips' error.
+pub(super) fn interpolate(t: &[([f64; 2], f64); 3], x: [f64; 2]) -> Option<f64> {
+    let [(a, fa), (b, fb), (c, fc)] = *t;
+    let det = orient(a, b, c);
+    let lb = orient(a, x, c) / det;
+    let lc = orient(a, b, x) / det;
+    let la = 1.0 - lb - lc;
+    let eps = -1e-9;
+    (la >= eps && lb >= eps && lc >= eps).then_some(la * fa + lb * fb + lc * fc)
+}
+
 /// The piecewise-linear interpolation of `values` (one per point) on the
 /// triangles, at every cell of a grid of `shape` (C order); NaN at cells no
 /// triangle covers. A cell on a shared edge takes the first triangle's value
@@ -516,24 +535,19 @@ pub fn piecewise_linear(
     for t in triangles {
         let [a, b, c] = t.map(|v| points[v as usize]);
         let [fa, fb, fc] = t.map(|v| values[v as usize]);
-        let det = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        let det = orient(a, b, c);
         if det.abs() < 1e-12 {
             continue;
         }
         let lo = |k: usize| a[k].min(b[k]).min(c[k]).ceil().max(0.0) as usize;
         let hi = |k: usize, n: usize| (a[k].max(b[k]).max(c[k]).floor() as usize).min(n - 1);
+        let corners = [(a, fa), (b, fb), (c, fc)];
         for r in lo(0)..=hi(0, n0) {
             for col in lo(1)..=hi(1, n1) {
-                let (x, y) = (r as f64, col as f64);
-                // Barycentric coordinates of (x, y).
-                let lb = ((x - a[0]) * (c[1] - a[1]) - (y - a[1]) * (c[0] - a[0])) / det;
-                let lc = ((b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0])) / det;
-                let la = 1.0 - lb - lc;
-                let eps = -1e-9;
-                if la >= eps && lb >= eps && lc >= eps {
+                if let Some(v) = interpolate(&corners, [r as f64, col as f64]) {
                     let slot = &mut out[r * n1 + col];
                     if slot.is_nan() {
-                        *slot = la * fa + lb * fb + lc * fc;
+                        *slot = v;
                     }
                 }
             }
