@@ -15,8 +15,9 @@
 //! E(T) = Σ_{x ∈ quad} (f(x) − f̃_T(x))²,
 //! ```
 //!
-//! by more than a relative `1e-9` (so that rounding cannot make the flips
-//! cycle). Each flip lowers the total error, so the greedy loop (a queue of
+//! by more than a relative `1e-9` and more than `1e-12` of the image's
+//! largest magnitude squared (so that rounding cannot make the flips cycle: on a
+//! plateau of the image the error is rounding alone). Each flip lowers the total error, so the greedy loop (a queue of
 //! edges; a flip queues the quadrilateral's four sides) ends; it stops at a
 //! local minimum, where no single flip helps. A diagonal that already is an
 //! edge elsewhere is never made (the mesh stays manifold), and the
@@ -64,6 +65,16 @@ fn pair_error(shape: [usize; 2], image: &[f64], pair: [&[([f64; 2], f64); 3]; 2]
         }
     }
     sum
+}
+
+/// Gains below this are rounding noise, not gains: `1e-12` of the image's
+/// largest magnitude squared (the interpolant's rounding error grows with
+/// the values, not with their range). On a plateau of the image the error
+/// is rounding alone (about `1e-30` per cell for values near 1), and flips
+/// chasing it cycled until the flip limit.
+pub(super) fn rounding_tolerance(image: &[f64]) -> f64 {
+    let scale = image.iter().fold(0.0f64, |m, &x| m.max(x.abs()));
+    1e-12 * scale * scale
 }
 
 fn key(a: u32, b: u32) -> (u32, u32) {
@@ -119,6 +130,7 @@ pub fn flip_to_image(
         .fold(0.0f64, |m, p| m.max(p[0].abs()).max(p[1].abs()))
         .max(1.0);
     let corner = |v: u32| (points[v as usize], values[v as usize]);
+    let tolerance = rounding_tolerance(image);
     let mut stats = FlipStats::default();
     let limit = 64 * triangles.len() + 64;
     while let Some(e) = queue.pop() {
@@ -176,7 +188,7 @@ pub fn flip_to_image(
                 &[corner(r2), corner(q), corner(r1)],
             ],
         );
-        if after >= before * (1.0 - 1e-9) - 1e-300 {
+        if after >= before * (1.0 - 1e-9) - tolerance {
             continue;
         }
         triangles[t1] = [p, r2, r1];
@@ -273,6 +285,46 @@ mod tests {
             *counts.entry(k).or_insert(0) += 1;
         }
         assert!(counts.values().all(|&c| c <= 2));
+    }
+
+    /// On a plateau the interpolant's error is rounding noise (about
+    /// 1e-30 per cell): no flip may chase it. Before the tolerance, flips
+    /// cycled on such noise until the flip limit.
+    #[test]
+    fn a_constant_image_makes_no_flips() {
+        let (n, m) = (65usize, 8usize);
+        let f = vec![0.7; n * n];
+        let step = (n - 1) / m;
+        let mut points = Vec::new();
+        for i in 0..=m {
+            for j in 0..=m {
+                // A jittered grid, so that the quadrilaterals differ.
+                let jitter = |k: usize| {
+                    if (k * 7 + i + j).is_multiple_of(3) {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                };
+                let inner = |k: usize| k > 0 && k < m;
+                points.push([
+                    (i * step) as f64 + if inner(i) { jitter(i) } else { 0.0 },
+                    (j * step) as f64 + if inner(j) { jitter(j + 1) } else { 0.0 },
+                ]);
+            }
+        }
+        let id = |i: usize, j: usize| (i * (m + 1) + j) as u32;
+        let mut tris = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        let values = vec![0.7; points.len()];
+        let s = flip_to_image([n, n], &points, &mut tris, &values, &f, &Control::new()).unwrap();
+        assert_eq!(s.flips, 0);
+        assert!(s.evaluated > 0);
     }
 
     #[test]
