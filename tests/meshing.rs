@@ -381,6 +381,7 @@ fn an_adapted_image_mesh_beats_the_uniform_one() {
             count: 200,
             metric,
             flips: false,
+            moves: false,
         };
         let m = mesh_image(&grid, &image, &options, &Control::new()).expect("mesh");
         assert!(check_planar(&m.points, &m.triangles).is_empty());
@@ -455,6 +456,7 @@ fn data_dependent_flips_lower_the_error_and_keep_a_triangulation() {
                 count: 200,
                 metric,
                 flips,
+                moves: false,
             };
             mesh_image(&grid, &image, &options, &Control::new()).expect("mesh")
         };
@@ -476,6 +478,65 @@ fn data_dependent_flips_lower_the_error_and_keep_a_triangulation() {
         assert!((area(&flipped.points, &flipped.triangles) - 99.0 * 99.0).abs() < 1e-6);
         assert!(flipped.approximation.iter().all(|v| v.is_finite()));
     }
+}
+
+/// Vertex moves (`moves: true`) keep the vertex count, put the vertices on
+/// grid cells with the image's values, lower the error below the flips
+/// alone and leave a valid triangulation of the rectangle.
+#[test]
+fn vertex_moves_lower_the_error_below_the_flips_alone() {
+    use geodex::numerics::meshing::{mesh_image, ImageMeshOptions, ImageMetric};
+    let (n0, n1) = (100usize, 100usize);
+    let grid = Grid::unit(&[n0, n1]).expect("grid");
+    let image = smooth_disc(n0, n1);
+    let run = |flips, moves| {
+        let options = ImageMeshOptions {
+            count: 200,
+            metric: ImageMetric::Hessian {
+                sigma: 1.0,
+                strength: 8.0,
+            },
+            flips,
+            moves,
+        };
+        mesh_image(&grid, &image, &options, &Control::new()).expect("mesh")
+    };
+    let (flipped, moved) = (run(true, false), run(false, true));
+    println!(
+        "L2 flips {:.5}, moves {:.5} ({} moves, {} flips)",
+        flipped.l2_error, moved.l2_error, moved.moves, moved.flips
+    );
+    assert_eq!(moved.points.len(), flipped.points.len());
+    assert_eq!(moved.triangles.len(), flipped.triangles.len());
+    assert!(moved.moves > 0 && moved.flips > 0);
+    assert!(
+        moved.l2_error < 0.8 * flipped.l2_error,
+        "{} vs {}",
+        moved.l2_error,
+        flipped.l2_error
+    );
+    for (p, v) in moved.points.iter().zip(&moved.values) {
+        assert!(p[0].fract() == 0.0 && p[1].fract() == 0.0, "{p:?}");
+        assert_eq!(*v, image[p[0] as usize * n1 + p[1] as usize]);
+    }
+    assert!(check_planar(&moved.points, &moved.triangles).is_empty());
+    assert!((area(&moved.points, &moved.triangles) - 99.0 * 99.0).abs() < 1e-6);
+    assert!(moved.approximation.iter().all(|v| v.is_finite()));
+    // The error reported is the error of the mesh returned.
+    let again = geodex::numerics::meshing::piecewise_linear(
+        [n0, n1],
+        &moved.points,
+        &moved.triangles,
+        &moved.values,
+    );
+    let rms = (image
+        .iter()
+        .zip(&again)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        / (n0 * n1) as f64)
+        .sqrt();
+    assert!((rms - moved.l2_error).abs() < 1e-12);
 }
 
 /// Anisotropic image meshing: on a sharp straight edge (a smoothed step
@@ -501,6 +562,7 @@ fn anisotropic_image_meshes_are_valid_and_beat_the_uniform_mesh_on_an_edge() {
                 count,
                 metric,
                 flips: false,
+                moves: false,
             },
             &Control::new(),
         )

@@ -380,6 +380,10 @@ pub struct MeshArgs {
     /// triangulation of the same vertices; the uniform mesh too).
     #[arg(long)]
     pub flips: bool,
+    /// Also move vertices to nearby grid cells while that lowers the L2
+    /// error (implies --flips; the uniform mesh too).
+    #[arg(long)]
+    pub moves: bool,
     /// Physical size of a cell along each axis.
     #[command(flatten)]
     pub spacing: SpacingFlag,
@@ -1136,11 +1140,13 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
         rho: args.rho,
         compare_uniform: !args.no_compare,
         flips: args.flips,
+        moves: args.moves,
         spacing: args.spacing.spacing.clone(),
     };
     let flags = grid_flags()
         .field("dataset", "--image")
         .field("flips", "--flips")
+        .field("moves", "--moves")
         .field("compare_uniform", "--no-compare");
     let (out, secs) = execute(&request, &inputs, None, &flags)?;
     let Some(mesh) = &out.mesh else {

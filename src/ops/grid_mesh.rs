@@ -86,6 +86,12 @@ pub struct GridMeshRequest {
     /// same vertices; the uniform comparison mesh gets the same). Default false.
     #[serde(default)]
     pub flips: bool,
+    /// After the dual, move vertices (to nearby grid cells) and flip edges
+    /// while that lowers the L2 error: the same vertex count, placed by the
+    /// image itself; implies `flips`; the uniform comparison mesh gets the
+    /// same. Slower (seconds on a 512² image). Default false.
+    #[serde(default)]
+    pub moves: bool,
     /// Also mesh uniformly with the same vertex count and report its error. Default true.
     #[serde(default = "yes")]
     pub compare_uniform: bool,
@@ -241,6 +247,7 @@ impl Operation for GridMeshRequest {
                     count: self.count,
                     metric,
                     flips: self.flips,
+                    moves: self.moves,
                 },
                 control,
             )
@@ -259,6 +266,7 @@ impl Operation for GridMeshRequest {
                 "l2_error": m.l2_error,
                 "added": m.added,
                 "flips": m.flips,
+                "moves": m.moves,
             })
         };
         let mut stats = serde_json::json!({
@@ -275,6 +283,7 @@ impl Operation for GridMeshRequest {
             },
             "covering_radius": mesh.covering_radius,
             "flips": mesh.flips,
+            "moves": mesh.moves,
             "seconds": seconds,
         });
         if let Some(u) = &uniform {

@@ -3,7 +3,8 @@
 the piecewise-linear approximation on a uniform, a gradient-adapted, a
 Hessian-adapted (isotropic) and two anisotropic (absolute Hessian
 det^(-1/6)|H|, structure tensor) geodesic Delaunay meshes with the same
-vertex count; with `--flips`, each also after data-dependent edge flips.
+vertex count; with `--flips`, each also after data-dependent edge flips;
+with `--moves`, each also after vertex moves and flips (`geodex mesh --moves`).
 
 Needs a venv with scikit-image and numpy (the image only) and a geodex binary:
 
@@ -36,6 +37,10 @@ def main():
     ap.add_argument("--strength", type=float, default=8.0)
     ap.add_argument("--flips", action="store_true",
                     help="also run every metric with data-dependent edge flips (`geodex mesh --flips`)")
+    ap.add_argument("--moves", action="store_true",
+                    help="also run every metric with vertex moves and flips (`geodex mesh --moves`)")
+    ap.add_argument("--metrics", default=None,
+                    help="comma-separated subset of the metrics (default: all five)")
     args = ap.parse_args()
     image = data.camera().astype(np.float64) / 255.0
     rows = []
@@ -51,11 +56,14 @@ def main():
                 ("hessian", args.sigma, args.strength, []),
                 ("anisotropic-hessian", 1.0, 20.0, ["--anisotropy", "8"]),
                 ("structure-tensor", 1.0, 32.0, ["--anisotropy", "4", "--rho", "1"])]
-        if args.flips:
-            runs = [r for run in runs for r in [run, (run[0], run[1], run[2], run[3] + ["--flips"])]]
+        if args.metrics:
+            keep = args.metrics.split(",")
+            runs = [r for r in runs if r[0] in keep]
+        variants = [[]] + ([["--flips"]] if args.flips else []) + ([["--moves"]] if args.moves else [])
+        runs = [(m, s, k, e + v) for (m, s, k, e) in runs for v in variants]
         for metric, sigma, strength, extra in runs:
-            flips = "--flips" in extra
-            metric_name = metric + (" + flips" if flips else "")
+            metric_name = metric + (" + flips" if "--flips" in extra else "") + (
+                " + moves" if "--moves" in extra else "")
             out = os.path.join(tmp, f"{metric}.ply")
             stats = os.path.join(tmp, f"{metric}.json")
             cmd = [args.geodex, "mesh", "--image", path, "--count", str(args.count),
@@ -68,7 +76,8 @@ def main():
             with open(stats) as f:
                 s = json.load(f)["stats"]
             row = {"metric": metric_name, "vertices": s["vertices"], "triangles": s["triangles"],
-                   "added": s["added"], "l2_error": s["l2_error"], "seconds": seconds}
+                   "added": s["added"], "l2_error": s["l2_error"], "seconds": seconds,
+                   "flips": s.get("flips", 0), "moves": s.get("moves", 0)}
             print(json.dumps(row))
             rows.append(row)
     base = rows[0]["l2_error"]

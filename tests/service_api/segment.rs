@@ -547,6 +547,27 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
     );
     assert!(f["l2_error"].as_f64().expect("e") < e, "{f}");
     assert_eq!(stats["flips"], 0, "{stats}");
+    // With vertex moves: the same vertex count, below the flips alone.
+    let res = post(
+        &app,
+        "/v1/grid/mesh",
+        json!({"dataset": id, "count": 80, "moves": true}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let moved: serde_json::Value = res.json().await.expect("json");
+    let m = &moved["stats"];
+    assert_eq!(m["vertices"], stats["vertices"], "{m}");
+    assert!(m["moves"].as_u64().expect("moves") > 0, "{m}");
+    assert!(
+        m["uniform"]["moves"].as_u64().expect("uniform moves") > 0,
+        "{m}"
+    );
+    assert!(
+        m["l2_error"].as_f64().expect("e") < f["l2_error"].as_f64().expect("e"),
+        "{m}"
+    );
+    assert_eq!(stats["moves"], 0, "{stats}");
 }
 
 #[tokio::test]

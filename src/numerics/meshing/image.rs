@@ -27,7 +27,10 @@
 //!
 //! With [`ImageMeshOptions::flips`] the dual is then improved by
 //! data-dependent edge flips ([`super::image_flips`]): same vertices, a
-//! triangulation whose interpolant has a lower L2 error.
+//! triangulation whose interpolant has a lower L2 error. With
+//! [`ImageMeshOptions::moves`] the vertices move too ([`super::image_moves`]:
+//! a pattern search over grid cells, each move lowering that error, with
+//! the flips between sweeps).
 //!
 //! # Anisotropic metrics
 //!
@@ -61,6 +64,7 @@
 use std::borrow::Cow;
 
 use super::image_flips::flip_to_image;
+use super::image_moves::move_to_image;
 use crate::numerics::anisotropic::structure_tensor::structure_tensor;
 use crate::numerics::anisotropic::{TensorError, TensorField};
 use crate::numerics::control::Control;
@@ -127,6 +131,10 @@ pub struct ImageMeshOptions {
     /// ([`super::image_flips`]): a data-dependent triangulation of the same
     /// vertices.
     pub flips: bool,
+    /// After the dual, move vertices to grid cells near them and flip
+    /// edges while that lowers the L2 error ([`super::image_moves`]; implies
+    /// the flips): the same vertex count, placed by the image itself.
+    pub moves: bool,
 }
 
 /// A mesh of an image and the image's approximation on it.
@@ -150,8 +158,10 @@ pub struct ImageMesh {
     pub repaired: RepairCounts,
     /// The covering radius of the samples in the metric.
     pub covering_radius: f64,
-    /// Edges flipped to lower the error (0 without `flips`).
+    /// Edges flipped to lower the error (0 without `flips` or `moves`).
     pub flips: usize,
+    /// Vertex moves that lowered the error (0 without `moves`).
+    pub moves: usize,
 }
 
 /// Why an image could not be meshed.
@@ -457,23 +467,33 @@ pub fn mesh_image(
             d = second;
         }
     }
-    let values: Vec<f64> = d
+    let mut values: Vec<f64> = d
         .points
         .iter()
         .map(|p| image[p[0] as usize * n1 + p[1] as usize])
         .collect();
-    let flips = if options.flips {
-        flip_to_image(
+    let (flips, moves) = if options.moves {
+        let s = move_to_image(
+            [n0, n1],
+            &mut d.points,
+            &mut d.dual.triangles,
+            &mut values,
+            image,
+            control,
+        )?;
+        (s.flips, s.moves)
+    } else if options.flips {
+        let s = flip_to_image(
             [n0, n1],
             &d.points,
             &mut d.dual.triangles,
             &values,
             image,
             control,
-        )?
-        .flips
+        )?;
+        (s.flips, 0)
     } else {
-        0
+        (0, 0)
     };
     let approximation = piecewise_linear([n0, n1], &d.points, &d.dual.triangles, &values);
     let sq: f64 = image
@@ -498,6 +518,7 @@ pub fn mesh_image(
         approximation,
         cost: w,
         flips,
+        moves,
     })
 }
 
@@ -511,13 +532,21 @@ pub(super) fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 /// `x` (barycentric coordinates), if `x` is in the closed triangle (within
 /// 1e-9). The one rule of [`piecewise_linear`] and of the flips' error.
 pub(super) fn interpolate(t: &[([f64; 2], f64); 3], x: [f64; 2]) -> Option<f64> {
+    locate(t, x).map(|(value, _)| value)
+}
+
+/// [`interpolate`], and whether `x` is on the triangle's boundary (a
+/// barycentric coordinate within 1e-9 of 0), where a neighbour may hold it
+/// too.
+pub(super) fn locate(t: &[([f64; 2], f64); 3], x: [f64; 2]) -> Option<(f64, bool)> {
     let [(a, fa), (b, fb), (c, fc)] = *t;
     let det = orient(a, b, c);
     let lb = orient(a, x, c) / det;
     let lc = orient(a, b, x) / det;
     let la = 1.0 - lb - lc;
-    let eps = -1e-9;
-    (la >= eps && lb >= eps && lc >= eps).then_some(la * fa + lb * fb + lc * fc)
+    let eps = 1e-9;
+    (la >= -eps && lb >= -eps && lc >= -eps)
+        .then(|| (la * fa + lb * fb + lc * fc, la.min(lb).min(lc) <= eps))
 }
 
 /// The piecewise-linear interpolation of `values` (one per point) on the

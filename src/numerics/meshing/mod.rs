@@ -10,6 +10,7 @@
 //!   metric from the image, its triangulation, the piecewise-linear
 //!   approximation of the image on it and its L2 error.
 //! * [`image_flips`]: data-dependent edge flips that lower that error.
+//! * [`image_moves`]: vertex moves (with those flips) that lower it further.
 //! * [`surface`]: surface remeshing (sections 4.4 and 4.6): geodesic
 //!   sampling, geodesic Lloyd relaxation and the dual of the Voronoi cells.
 //! * [`surface_relax`]: the remesh's last step: edge flips and tangential
@@ -18,6 +19,7 @@
 pub mod domain;
 pub mod image;
 pub mod image_flips;
+pub mod image_moves;
 pub mod surface;
 pub mod surface_relax;
 
