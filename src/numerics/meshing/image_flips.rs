@@ -215,13 +215,54 @@ pub fn flip_to_image(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Squared error of a whole triangulation.
-    fn total(shape: [usize; 2], p: &[[f64; 2]], t: &[[u32; 3]], v: &[f64], f: &[f64]) -> f64 {
+    pub(in crate::numerics::meshing) fn total(
+        shape: [usize; 2],
+        p: &[[f64; 2]],
+        t: &[[u32; 3]],
+        v: &[f64],
+        f: &[f64],
+    ) -> f64 {
         let g = crate::numerics::meshing::piecewise_linear(shape, p, t, v);
         f.iter().zip(&g).map(|(a, b)| (a - b).powi(2)).sum()
+    }
+
+    /// The `(m + 1)²` points `(i, j) · step` and two right triangles per
+    /// square, counter-clockwise, their diagonals all the same way.
+    pub(in crate::numerics::meshing) fn lattice(
+        m: usize,
+        step: f64,
+    ) -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
+        let mut points = Vec::new();
+        for i in 0..=m {
+            for j in 0..=m {
+                points.push([i as f64 * step, j as f64 * step]);
+            }
+        }
+        let id = |i: usize, j: usize| (i * (m + 1) + j) as u32;
+        let mut tris = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        (points, tris)
+    }
+
+    /// The area of counter-clockwise triangles (asserted).
+    pub(in crate::numerics::meshing) fn ccw_area(points: &[[f64; 2]], tris: &[[u32; 3]]) -> f64 {
+        tris.iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| points[v as usize]);
+                let o = orient(a, b, c);
+                assert!(o > 0.0, "{t:?} turns clockwise");
+                o / 2.0
+            })
+            .sum()
     }
 
     #[test]
@@ -239,21 +280,7 @@ mod tests {
                 }
             })
             .collect();
-        let step = (n - 1) as f64 / m as f64;
-        let mut points = Vec::new();
-        for i in 0..=m {
-            for j in 0..=m {
-                points.push([i as f64 * step, j as f64 * step]);
-            }
-        }
-        let id = |i: usize, j: usize| (i * (m + 1) + j) as u32;
-        let mut tris = Vec::new();
-        for i in 0..m {
-            for j in 0..m {
-                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
+        let (points, mut tris) = lattice(m, (n - 1) as f64 / m as f64);
         let values: Vec<f64> = points
             .iter()
             .map(|p| f[p[0] as usize * n + p[1] as usize])
@@ -265,15 +292,7 @@ mod tests {
         assert!(after < 0.8 * before, "{after} vs {before}");
         // Still a triangulation of the square: counter-clockwise triangles
         // whose areas add up to the square's.
-        let area: f64 = tris
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| points[v as usize]);
-                let o = orient(a, b, c);
-                assert!(o > 0.0);
-                o / 2.0
-            })
-            .sum();
+        let area = ccw_area(&points, &tris);
         assert!((area - ((n - 1) * (n - 1)) as f64).abs() < 1e-9);
         let mut e: Vec<(u32, u32)> = tris
             .iter()
@@ -294,31 +313,15 @@ mod tests {
     fn a_constant_image_makes_no_flips() {
         let (n, m) = (65usize, 8usize);
         let f = vec![0.7; n * n];
-        let step = (n - 1) / m;
-        let mut points = Vec::new();
-        for i in 0..=m {
-            for j in 0..=m {
-                // A jittered grid, so that the quadrilaterals differ.
-                let jitter = |k: usize| {
-                    if (k * 7 + i + j).is_multiple_of(3) {
-                        1.0
-                    } else {
-                        0.0
-                    }
-                };
-                let inner = |k: usize| k > 0 && k < m;
-                points.push([
-                    (i * step) as f64 + if inner(i) { jitter(i) } else { 0.0 },
-                    (j * step) as f64 + if inner(j) { jitter(j + 1) } else { 0.0 },
-                ]);
+        let (mut points, mut tris) = lattice(m, ((n - 1) / m) as f64);
+        // Inner points jittered by a cell, so that the quadrilaterals differ.
+        for (k, p) in points.iter_mut().enumerate() {
+            let (i, j) = (k / (m + 1), k % (m + 1));
+            if i > 0 && i < m && j > 0 && j < m && (7 * k).is_multiple_of(3) {
+                p[0] += 1.0;
             }
-        }
-        let id = |i: usize, j: usize| (i * (m + 1) + j) as u32;
-        let mut tris = Vec::new();
-        for i in 0..m {
-            for j in 0..m {
-                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            if i > 0 && i < m && j > 0 && j < m && (5 * k + 1).is_multiple_of(3) {
+                p[1] += 1.0;
             }
         }
         let values = vec![0.7; points.len()];

@@ -248,12 +248,7 @@ pub fn move_to_image(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::numerics::meshing::piecewise_linear;
-
-    fn total(shape: [usize; 2], p: &[[f64; 2]], t: &[[u32; 3]], v: &[f64], f: &[f64]) -> f64 {
-        let g = piecewise_linear(shape, p, t, v);
-        f.iter().zip(&g).map(|(a, b)| (a - b).powi(2)).sum()
-    }
+    use crate::numerics::meshing::image_flips::tests::{ccw_area, lattice, total};
 
     /// A blurred disc meshed by a regular grid of vertices: the moves lower
     /// the error well below what flips alone reach, the error never rises,
@@ -269,22 +264,7 @@ mod tests {
                 1.0 / (1.0 + ((r - 18.0) / 1.5).exp())
             })
             .collect();
-        let m = 8usize;
-        let step = (n - 1) / m;
-        let mut points = Vec::new();
-        for i in 0..=m {
-            for j in 0..=m {
-                points.push([(i * step) as f64, (j * step) as f64]);
-            }
-        }
-        let id = |i: usize, j: usize| (i * (m + 1) + j) as u32;
-        let mut tris = Vec::new();
-        for i in 0..m {
-            for j in 0..m {
-                tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
+        let (mut points, mut tris) = lattice(8, 8.0);
         let mut values: Vec<f64> = points
             .iter()
             .map(|p| f[p[0] as usize * n + p[1] as usize])
@@ -320,15 +300,7 @@ mod tests {
             assert_eq!(*v, f[p[0] as usize * n + p[1] as usize]);
         }
         // A triangulation of the square, border vertices on the border.
-        let area: f64 = tris
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| points[v as usize]);
-                let o = orient(a, b, c);
-                assert!(o > 0.0);
-                o / 2.0
-            })
-            .sum();
+        let area = ccw_area(&points, &tris);
         assert!((area - (64.0 * 64.0)).abs() < 1e-9, "area {area}");
         for (p, b) in points.iter().zip(border) {
             let on = p[0] == 0.0 || p[1] == 0.0 || p[0] == 64.0 || p[1] == 64.0;
