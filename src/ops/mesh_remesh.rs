@@ -262,6 +262,7 @@ impl Operation for MeshRemeshRequest {
             "edge_flips": r.relaxed.flips,
             "vertex_moves": r.relaxed.moves,
             "vertex_moves_undone": r.relaxed.rejected,
+            "covering_moves": r.relaxed.covering_moves,
             "valid": r.valid,
             "flipped": r.flipped,
             "removed_faces": r.cleaned.removed_faces,

@@ -45,6 +45,20 @@
 //! `∝ ρ^{-1/4}` on a surface, so the density of a cost `W` (cells
 //! `∝ 1/W`) is `ρ = W⁴`; uniform remeshing has `ρ = 1`.
 //!
+//! **Covering sweeps.** The Hausdorff distance of the output to a smooth
+//! input is set by its largest triangles: a triangle of circumradius `R`
+//! with its corners on a surface of curvature `κ` strays about `κ R² / 2`
+//! from it. Lloyd's moves equalise the cells in the mean-square sense,
+//! which leaves the largest circumradius a few percent above the mean. So
+//! [`COVER_SWEEPS`] sweeps follow (each after a flip pass): a free vertex
+//! whose star is smooth (one-ring normals within 25° of their mean) moves
+//! towards the centroid `g` of its star's triangle of largest circumradius,
+//! by the best of `p + s (g − p)`, `s ∈ {0.03, 0.1, 0.25}`, projected by
+//! `π`, that lowers that largest circumradius of the star, turns no
+//! triangle and closes no angle below the smaller of its old value and
+//! 36°. It is a descent on the star's largest circumradius: a minimax step,
+//! where Lloyd's is a least-squares one.
+//!
 //! Flips keep the vertex set and moves keep the connectivity, so a manifold
 //! of the input's topology stays one.
 
@@ -65,6 +79,23 @@ const MOVE_NORMAL_COS: f64 = 0.258_819_045_102_520_8; // cos 75°
 /// 1.8 reach the angles of about 50 at 1.0).
 const OVER_RELAXATION: f64 = 1.8;
 
+/// Covering sweeps after the Lloyd sweeps (see the module docs). On the
+/// 655k-vertex icosphere 5 sweeps took the Hausdorff distance at 1,000
+/// vertices from 0.00094 to 0.00078 of the diagonal (20 sweeps: 0.00078).
+const COVER_SWEEPS: usize = 5;
+
+/// A covering move never closes an angle below this (36°), nor below the
+/// angle the triangle had.
+const COVER_MIN_ANGLE: f64 = std::f64::consts::PI / 5.0;
+
+/// Covering moves only where the star is smooth: every one-ring normal
+/// within 25° of their mean (cos 25°). On the scanned dragon, moves across
+/// its details raised the Hausdorff distance at 20,000 vertices by 14 %.
+const COVER_SMOOTH_COS: f64 = 0.906_307_787_036_649_9;
+
+/// The fractions of the way to the target a covering move tries.
+const COVER_FRACTIONS: [f64; 3] = [0.03, 0.1, 0.25];
+
 /// What the relaxation did.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RelaxReport {
@@ -76,6 +107,8 @@ pub struct RelaxReport {
     pub moves: usize,
     /// Vertex moves undone (a turned triangle or a fold of the input).
     pub rejected: usize,
+    /// Moves of the covering sweeps that followed.
+    pub covering_moves: usize,
 }
 
 /// The nearest point to `p` of the triangle `(a, b, c)` and its squared
@@ -511,8 +544,129 @@ pub fn relax(
             }
         }
     }
+    if !control.is_cancelled() {
+        report.covering_moves = cover(&projector, &fixed, &|f| on_sharp(f), positions, faces, host);
+    }
     report.flips += flip_edges(positions, faces, 4);
     report
+}
+
+/// Circumradius `abc / (4 area)` of a triangle in space (infinite when
+/// degenerate).
+fn circumradius(t: [[f64; 3]; 3]) -> f64 {
+    let (a, b, c) = (
+        norm(sub(t[1], t[0])),
+        norm(sub(t[2], t[1])),
+        norm(sub(t[0], t[2])),
+    );
+    let twice_area = norm(cross(sub(t[1], t[0]), sub(t[2], t[0])));
+    if twice_area > 0.0 {
+        a * b * c / (2.0 * twice_area)
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Smallest interior angle of a triangle in space (radians).
+fn min_angle(t: [[f64; 3]; 3]) -> f64 {
+    (0..3)
+        .map(|k| {
+            let (a, b) = (sub(t[(k + 1) % 3], t[k]), sub(t[(k + 2) % 3], t[k]));
+            (dot(a, b) / (norm(a) * norm(b))).clamp(-1.0, 1.0).acos()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The covering sweeps (see the module docs): each free vertex whose star
+/// is smooth moves, by the best of three fractions of the way, towards the
+/// centroid of its star's triangle of largest circumradius, when that
+/// lowers the star's largest circumradius without turning a triangle or
+/// closing an angle below `min(its angle, COVER_MIN_ANGLE)`. Returns the
+/// moves made.
+fn cover(
+    projector: &Projector<'_>,
+    fixed: &[bool],
+    on_sharp: &dyn Fn(u32) -> bool,
+    positions: &mut [[f64; 3]],
+    faces: &mut [[u32; 3]],
+    host: &mut [u32],
+) -> usize {
+    let nv = positions.len();
+    let mut moves = 0;
+    let mut olds: Vec<([f64; 3], f64)> = Vec::new();
+    for _ in 0..COVER_SWEEPS {
+        flip_edges(positions, faces, 1);
+        let (offsets, around) = bucket(
+            nv,
+            faces
+                .iter()
+                .enumerate()
+                .flat_map(|(f, t)| t.map(|v| (v as usize, f as u32))),
+        );
+        for v in 0..nv {
+            if fixed[v] || on_sharp(host[v]) {
+                continue;
+            }
+            let ring = &around[offsets[v]..offsets[v + 1]];
+            if ring.len() < 3 {
+                continue;
+            }
+            let corners = |ps: &[[f64; 3]], g: u32| faces[g as usize].map(|u| ps[u as usize]);
+            olds.clear();
+            olds.extend(ring.iter().map(|&g| {
+                let t = corners(positions, g);
+                (triangle_normal(positions, faces[g as usize]), min_angle(t))
+            }));
+            let normals: Vec<[f64; 3]> = olds.iter().filter_map(|(n, _)| unit(*n)).collect();
+            let mean = normals
+                .iter()
+                .fold([0.0; 3], |m, n| [m[0] + n[0], m[1] + n[1], m[2] + n[2]]);
+            match unit(mean) {
+                Some(m)
+                    if normals.len() == ring.len()
+                        && normals.iter().all(|n| dot(*n, m) >= COVER_SMOOTH_COS) => {}
+                _ => continue,
+            }
+            let largest = |ps: &[[f64; 3]]| {
+                ring.iter().fold((0.0f64, ring[0]), |m, &g| {
+                    let r = circumradius(corners(ps, g));
+                    if r > m.0 {
+                        (r, g)
+                    } else {
+                        m
+                    }
+                })
+            };
+            let p = positions[v];
+            let (r0, g0) = largest(positions);
+            let t = corners(positions, g0);
+            let target: [f64; 3] = std::array::from_fn(|j| (t[0][j] + t[1][j] + t[2][j]) / 3.0);
+            let mut best: Option<(f64, [f64; 3], u32)> = None;
+            for fraction in COVER_FRACTIONS {
+                let aim: [f64; 3] = std::array::from_fn(|j| p[j] + fraction * (target[j] - p[j]));
+                let (q, f) = projector.project(host[v], aim);
+                if on_sharp(f) {
+                    continue;
+                }
+                positions[v] = q;
+                let fine = ring.iter().zip(&olds).all(|(&g, (normal, angle))| {
+                    dot(triangle_normal(positions, faces[g as usize]), *normal) > 0.0
+                        && min_angle(corners(positions, g)) >= angle.min(COVER_MIN_ANGLE)
+                });
+                let (r, _) = largest(positions);
+                positions[v] = p;
+                if fine && r < r0 * (1.0 - 1e-9) && best.is_none_or(|b| r < b.0) {
+                    best = Some((r, q, f));
+                }
+            }
+            if let Some((_, q, f)) = best {
+                positions[v] = q;
+                host[v] = f;
+                moves += 1;
+            }
+        }
+    }
+    moves
 }
 
 #[cfg(test)]
@@ -604,6 +758,86 @@ mod tests {
         }
         // A second call finds nothing to do.
         assert_eq!(flip_edges(&ps, &mut faces, 4), 0);
+    }
+
+    /// The covering sweeps lower the largest circumradius of a jittered
+    /// coarse sphere, keep its vertices on the input (a finer sphere), turn
+    /// no triangle and close no angle below the smaller of the old smallest
+    /// angle and 36°.
+    #[test]
+    fn covering_sweeps_shrink_the_largest_triangle() {
+        use crate::numerics::mesh::shapes::icosphere;
+        let input = icosphere(5, 1.0);
+        let topo = Topology::new(&input);
+        let coarse = icosphere(2, 1.0);
+        let mut state = 7u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let mut positions: Vec<[f64; 3]> = coarse
+            .positions()
+            .iter()
+            .map(|p| {
+                let q = [
+                    p[0] + 0.12 * rnd(),
+                    p[1] + 0.12 * rnd(),
+                    p[2] + 0.12 * rnd(),
+                ];
+                let l = norm(q);
+                q.map(|x| x / l)
+            })
+            .collect();
+        let mut faces = coarse.faces().to_vec();
+        let projector = Projector {
+            mesh: &input,
+            topo: &topo,
+        };
+        // Each vertex on the input, hosted by the nearest input face.
+        let mut host: Vec<u32> = Vec::new();
+        for p in positions.iter_mut() {
+            let (f, q) = (0..input.num_faces() as u32)
+                .map(|f| (f, projector.closest_on(f, *p)))
+                .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+                .map(|(f, (q, _))| (f, q))
+                .unwrap();
+            *p = q;
+            host.push(f);
+        }
+        let largest = |ps: &[[f64; 3]], fs: &[[u32; 3]]| {
+            fs.iter()
+                .map(|t| circumradius(t.map(|v| ps[v as usize])))
+                .fold(0.0f64, f64::max)
+        };
+        let smallest = |ps: &[[f64; 3]], fs: &[[u32; 3]]| {
+            fs.iter()
+                .map(|t| min_angle(t.map(|v| ps[v as usize])))
+                .fold(f64::INFINITY, f64::min)
+        };
+        flip_edges(&positions, &mut faces, 4);
+        let (r0, a0) = (largest(&positions, &faces), smallest(&positions, &faces));
+        let fixed = vec![false; positions.len()];
+        let moves = cover(
+            &projector,
+            &fixed,
+            &|_| false,
+            &mut positions,
+            &mut faces,
+            &mut host,
+        );
+        let (r1, a1) = (largest(&positions, &faces), smallest(&positions, &faces));
+        assert!(moves > 0);
+        assert!(r1 < 0.97 * r0, "largest circumradius {r0} -> {r1}");
+        assert!(a1 >= a0.min(COVER_MIN_ANGLE) - 1e-12, "{a0} -> {a1}");
+        for p in &positions {
+            assert!((0.999..=1.0 + 1e-12).contains(&norm(*p)), "{p:?}");
+        }
+        for t in &faces {
+            let n = triangle_normal(&positions, *t);
+            assert!(dot(n, positions[t[0] as usize]) > 0.0, "{t:?} turned");
+        }
     }
 
     #[test]
