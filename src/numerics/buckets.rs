@@ -38,3 +38,25 @@ where
     }
     (start, values)
 }
+
+/// The triangles around each of `n` vertices: those of vertex `v` are
+/// `around[start[v]..start[v + 1]]`, in increasing order.
+///
+/// # Examples
+///
+/// ```
+/// use geodex::numerics::buckets::triangles_by_vertex;
+///
+/// let (start, around) = triangles_by_vertex(4, &[[0, 1, 2], [0, 2, 3]]);
+/// assert_eq!(&around[start[0]..start[1]], &[0, 1]);
+/// assert_eq!(&around[start[3]..start[4]], &[1]);
+/// ```
+pub fn triangles_by_vertex(n: usize, triangles: &[[u32; 3]]) -> (Vec<usize>, Vec<u32>) {
+    bucket(
+        n,
+        triangles
+            .iter()
+            .enumerate()
+            .flat_map(|(t, tri)| tri.map(|v| (v as usize, t as u32))),
+    )
+}

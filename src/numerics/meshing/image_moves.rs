@@ -40,7 +40,7 @@
 
 use super::image::{locate, orient, MeshingError};
 use super::image_flips::{flip_to_image, rounding_tolerance};
-use crate::numerics::buckets::bucket;
+use crate::numerics::buckets::triangles_by_vertex;
 use crate::numerics::control::Control;
 
 /// Sweeps at most (a sweep is one pass over every vertex, then flips).
@@ -155,13 +155,7 @@ pub fn move_to_image(
     let mut dirty = vec![true; nv];
     while stats.sweeps < MAX_SWEEPS {
         stats.sweeps += 1;
-        let (offsets, around) = bucket(
-            nv,
-            triangles
-                .iter()
-                .enumerate()
-                .flat_map(|(t, tri)| tri.map(|v| (v as usize, t as u32))),
-        );
+        let (offsets, around) = triangles_by_vertex(nv, triangles);
         let mut moved = 0usize;
         for v in 0..nv {
             if v % 64 == 0 && control.is_cancelled() {

@@ -63,7 +63,7 @@
 //! of the input's topology stays one.
 
 use super::domain::CellMap;
-use crate::numerics::buckets::bucket;
+use crate::numerics::buckets::triangles_by_vertex;
 use crate::numerics::control::Control;
 use crate::numerics::mesh::{cross, dot, norm, sub, Topology, TriMesh, NONE};
 
@@ -449,13 +449,7 @@ pub fn relax(
         report.sweeps += 1;
         report.flips += flip_edges(positions, faces, 1);
         // Faces of each vertex (CSR).
-        let (offsets, around) = bucket(
-            nv,
-            faces
-                .iter()
-                .enumerate()
-                .flat_map(|(f, t)| t.map(|v| (v as usize, f as u32))),
-        );
+        let (offsets, around) = triangles_by_vertex(nv, faces);
         for v in 0..nv {
             if fixed[v] || on_sharp(host[v]) {
                 continue;
@@ -596,13 +590,7 @@ fn cover(
     let mut olds: Vec<([f64; 3], f64)> = Vec::new();
     for _ in 0..COVER_SWEEPS {
         flip_edges(positions, faces, 1);
-        let (offsets, around) = bucket(
-            nv,
-            faces
-                .iter()
-                .enumerate()
-                .flat_map(|(f, t)| t.map(|v| (v as usize, f as u32))),
-        );
+        let (offsets, around) = triangles_by_vertex(nv, faces);
         for v in 0..nv {
             if fixed[v] || on_sharp(host[v]) {
                 continue;
