@@ -57,7 +57,8 @@
 //! `π`, that lowers that largest circumradius of the star, turns no
 //! triangle and closes no angle below the smaller of its old value and
 //! 36°. It is a descent on the star's largest circumradius: a minimax step,
-//! where Lloyd's is a least-squares one.
+//! where Lloyd's is a least-squares one. Uniform remeshing only: under a
+//! density `ρ` the triangles are meant to differ in size.
 //!
 //! Flips keep the vertex set and moves keep the connectivity, so a manifold
 //! of the input's topology stays one.
@@ -538,7 +539,9 @@ pub fn relax(
             }
         }
     }
-    if !control.is_cancelled() {
+    // Uniform remeshing only: under a density the largest triangles are
+    // meant to be where the density is low.
+    if density.is_none() && !control.is_cancelled() {
         report.covering_moves = cover(&projector, &fixed, &|f| on_sharp(f), positions, faces, host);
     }
     report.flips += flip_edges(positions, faces, 4);
