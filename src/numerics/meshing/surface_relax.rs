@@ -542,7 +542,17 @@ pub fn relax(
     // Uniform remeshing only: under a density the largest triangles are
     // meant to be where the density is low.
     if density.is_none() && !control.is_cancelled() {
-        report.covering_moves = cover(&projector, &fixed, &|f| on_sharp(f), positions, faces, host);
+        let (moves, flips) = cover(
+            &projector,
+            &fixed,
+            &|f| on_sharp(f),
+            positions,
+            faces,
+            host,
+            control,
+        );
+        report.covering_moves = moves;
+        report.flips += flips;
     }
     report.flips += flip_edges(positions, faces, 4);
     report
@@ -579,7 +589,8 @@ fn min_angle(t: [[f64; 3]; 3]) -> f64 {
 /// centroid of its star's triangle of largest circumradius, when that
 /// lowers the star's largest circumradius without turning a triangle or
 /// closing an angle below `min(its angle, COVER_MIN_ANGLE)`. Returns the
-/// moves made.
+/// moves and the flips made; stops between sweeps when `control` is
+/// cancelled.
 fn cover(
     projector: &Projector<'_>,
     fixed: &[bool],
@@ -587,12 +598,16 @@ fn cover(
     positions: &mut [[f64; 3]],
     faces: &mut [[u32; 3]],
     host: &mut [u32],
-) -> usize {
+    control: &Control<'_>,
+) -> (usize, usize) {
     let nv = positions.len();
-    let mut moves = 0;
+    let (mut moves, mut flips) = (0, 0);
     let mut olds: Vec<([f64; 3], f64)> = Vec::new();
     for _ in 0..COVER_SWEEPS {
-        flip_edges(positions, faces, 1);
+        if control.is_cancelled() {
+            break;
+        }
+        flips += flip_edges(positions, faces, 1);
         let (offsets, around) = triangles_by_vertex(nv, faces);
         for v in 0..nv {
             if fixed[v] || on_sharp(host[v]) {
@@ -657,7 +672,7 @@ fn cover(
             }
         }
     }
-    moves
+    (moves, flips)
 }
 
 #[cfg(test)]
@@ -810,13 +825,14 @@ mod tests {
         flip_edges(&positions, &mut faces, 4);
         let (r0, a0) = (largest(&positions, &faces), smallest(&positions, &faces));
         let fixed = vec![false; positions.len()];
-        let moves = cover(
+        let (moves, _) = cover(
             &projector,
             &fixed,
             &|_| false,
             &mut positions,
             &mut faces,
             &mut host,
+            &Control::new(),
         );
         let (r1, a1) = (largest(&positions, &faces), smallest(&positions, &faces));
         assert!(moves > 0);
