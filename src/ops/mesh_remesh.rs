@@ -263,6 +263,7 @@ impl Operation for MeshRemeshRequest {
             "vertex_moves": r.relaxed.moves,
             "vertex_moves_undone": r.relaxed.rejected,
             "covering_moves": r.relaxed.covering_moves,
+            "mending_moves": r.relaxed.mending_moves,
             "valid": r.valid,
             "flipped": r.flipped,
             "removed_faces": r.cleaned.removed_faces,

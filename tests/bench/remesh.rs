@@ -139,6 +139,8 @@ fn main() {
             q["flips"] = r.relaxed.flips.into();
             q["moves"] = r.relaxed.moves.into();
             q["moves_rejected"] = r.relaxed.rejected.into();
+            q["covering_moves"] = r.relaxed.covering_moves.into();
+            q["mending_moves"] = r.relaxed.mending_moves.into();
             println!("{q}");
         }
         _ => eprintln!("usage: remesh run|dump|measure ... (see the file's docs)"),
