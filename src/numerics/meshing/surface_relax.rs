@@ -800,7 +800,12 @@ fn mend(
             }
         }
         let (offsets, around) = triangles_by_vertex(nv, faces);
-        for v in (0..nv).filter(|&v| todo[v]) {
+        for (k, v) in (0..nv).filter(|&v| todo[v]).enumerate() {
+            // A vertex tries up to 4 + 4 × valence candidates, each
+            // projecting 4 points per triangle of its star: poll often.
+            if k % 64 == 63 && control.is_cancelled() {
+                return (moves, flips);
+            }
             if fixed[v] || on_sharp(host[v]) {
                 continue;
             }
@@ -849,7 +854,8 @@ fn mend(
                 }
             }
             let a0 = star_angle(positions);
-            let d0 = star_deviation(positions, host[v]);
+            // The star's distance to the input, computed when first needed.
+            let mut d0: Option<f64> = None;
             let mut best: Option<(f64, [f64; 3], u32)> = None;
             for &aim in &aims {
                 let (q, f) = projector.project(host[v], aim);
@@ -858,20 +864,29 @@ fn mend(
                 }
                 positions[v] = q;
                 let a = star_angle(positions);
+                // Cheapest tests first: the distances to the input walk
+                // over its faces.
                 let fine = a > best.map_or(a0, |b| b.0)
                     && ring.iter().zip(&olds).all(|(&g, normal)| {
                         dot(triangle_normal(positions, faces[g as usize]), *normal) > 0.0
                     })
-                    && star_deviation(positions, f) <= d0 + MEND_SLACK * norm(sub(q, p))
-                    && ring
-                        .iter()
-                        .map(|&g| {
-                            let t = corners(positions, g);
-                            closest_point_on_triangle(p, t[0], t[1], t[2]).1
-                        })
-                        .fold(f64::INFINITY, f64::min)
-                        .sqrt()
-                        <= d0;
+                    && {
+                        let old = *d0.get_or_insert_with(|| {
+                            positions[v] = p;
+                            let d = star_deviation(positions, host[v]);
+                            positions[v] = q;
+                            d
+                        });
+                        ring.iter()
+                            .map(|&g| {
+                                let t = corners(positions, g);
+                                closest_point_on_triangle(p, t[0], t[1], t[2]).1
+                            })
+                            .fold(f64::INFINITY, f64::min)
+                            .sqrt()
+                            <= old
+                            && star_deviation(positions, f) <= old + MEND_SLACK * norm(sub(q, p))
+                    };
                 positions[v] = p;
                 if fine {
                     best = Some((a, q, f));
