@@ -1059,15 +1059,47 @@ mod tests {
         }
     }
 
+    /// [`cover`] or [`mend`].
+    type Sweeps = fn(
+        &Projector<'_>,
+        &[bool],
+        &dyn Fn(u32) -> bool,
+        &mut [[f64; 3]],
+        &mut [[u32; 3]],
+        &mut [u32],
+        &Control<'_>,
+    ) -> (usize, usize);
+
+    /// `sweeps` on the surface `input`, every vertex free, no input edge
+    /// sharp; returns the moves and flips.
+    fn free_sweeps(
+        sweeps: Sweeps,
+        input: &TriMesh,
+        positions: &mut [[f64; 3]],
+        faces: &mut [[u32; 3]],
+        host: &mut [u32],
+    ) -> (usize, usize) {
+        let topo = Topology::new(input);
+        let projector = Projector {
+            mesh: input,
+            topo: &topo,
+        };
+        let fixed = vec![false; positions.len()];
+        sweeps(
+            &projector,
+            &fixed,
+            &|_| false,
+            positions,
+            faces,
+            host,
+            &Control::new(),
+        )
+    }
+
     #[test]
     fn covering_sweeps_shrink_the_largest_triangle() {
         let input = crate::numerics::mesh::shapes::icosphere(5, 1.0);
-        let topo = Topology::new(&input);
         let (mut positions, mut faces, mut host) = jittered_on(&input, 0.12, 7);
-        let projector = Projector {
-            mesh: &input,
-            topo: &topo,
-        };
         let largest = |ps: &[[f64; 3]], fs: &[[u32; 3]]| {
             fs.iter()
                 .map(|t| circumradius(t.map(|v| ps[v as usize])))
@@ -1078,16 +1110,7 @@ mod tests {
             largest(&positions, &faces),
             smallest_angle(&positions, &faces),
         );
-        let fixed = vec![false; positions.len()];
-        let (moves, _) = cover(
-            &projector,
-            &fixed,
-            &|_| false,
-            &mut positions,
-            &mut faces,
-            &mut host,
-            &Control::new(),
-        );
+        let (moves, _) = free_sweeps(cover, &input, &mut positions, &mut faces, &mut host);
         let (r1, a1) = (
             largest(&positions, &faces),
             smallest_angle(&positions, &faces),
@@ -1101,12 +1124,7 @@ mod tests {
     #[test]
     fn mending_sweeps_open_the_small_angles() {
         let input = crate::numerics::mesh::shapes::icosphere(5, 1.0);
-        let topo = Topology::new(&input);
         let (mut positions, mut faces, mut host) = jittered_on(&input, 0.2, 11);
-        let projector = Projector {
-            mesh: &input,
-            topo: &topo,
-        };
         let below = |ps: &[[f64; 3]], fs: &[[u32; 3]]| {
             fs.iter()
                 .filter(|t| min_angle(t.map(|v| ps[v as usize])) < MEND_ANGLE)
@@ -1118,16 +1136,7 @@ mod tests {
         );
         assert!(b0 >= 20, "the jitter should make small angles: {b0}");
         assert_on_sphere(&positions, &faces);
-        let fixed = vec![false; positions.len()];
-        let (moves, flips) = mend(
-            &projector,
-            &fixed,
-            &|_| false,
-            &mut positions,
-            &mut faces,
-            &mut host,
-            &Control::new(),
-        );
+        let (moves, flips) = free_sweeps(mend, &input, &mut positions, &mut faces, &mut host);
         let (b1, a1) = (
             below(&positions, &faces),
             smallest_angle(&positions, &faces),
