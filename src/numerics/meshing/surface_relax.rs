@@ -758,7 +758,8 @@ fn deviation(projector: &Projector<'_>, start: u32, t: [[f64; 3]; 3]) -> f64 {
 }
 
 /// The angle-mending sweeps (see the module docs). Returns the moves and
-/// the flips made; stops between sweeps when `control` is cancelled.
+/// the flips made; stops between sweeps and every 64 vertices within one
+/// when `control` is cancelled. Same parameters as [`cover`].
 fn mend(
     projector: &Projector<'_>,
     fixed: &[bool],
