@@ -599,31 +599,20 @@ pub fn relax(
             }
         }
     }
+    let frame = Frame {
+        projector: &projector,
+        fixed: &fixed,
+        on_sharp: &on_sharp,
+    };
     // Uniform remeshing only: under a density the largest triangles are
     // meant to be where the density is low.
     if density.is_none() && !control.is_cancelled() {
-        let (moves, flips) = cover(
-            &projector,
-            &fixed,
-            &|f| on_sharp(f),
-            positions,
-            faces,
-            host,
-            control,
-        );
+        let (moves, flips) = cover(&frame, positions, faces, host, control);
         report.covering_moves = moves;
         report.flips += flips;
     }
     if !control.is_cancelled() {
-        let (moves, flips) = mend(
-            &projector,
-            &fixed,
-            &|f| on_sharp(f),
-            positions,
-            faces,
-            host,
-            control,
-        );
+        let (moves, flips) = mend(&frame, positions, faces, host, control);
         report.mending_moves = moves;
         report.flips += flips;
     }
@@ -657,6 +646,18 @@ fn min_angle(t: [[f64; 3]; 3]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// What the covering and mending sweeps read: the input and which output
+/// vertices stay.
+#[derive(Clone, Copy)]
+struct Frame<'a> {
+    /// Projection onto the input surface.
+    projector: &'a Projector<'a>,
+    /// Output vertices that never move (on a boundary).
+    fixed: &'a [bool],
+    /// Whether an input face touches a sharp input edge.
+    on_sharp: &'a dyn Fn(u32) -> bool,
+}
+
 /// The covering sweeps (see the module docs): each free vertex whose star
 /// is smooth moves, by the best of three fractions of the way, towards the
 /// centroid of its star's triangle of largest circumradius, when that
@@ -665,14 +666,17 @@ fn min_angle(t: [[f64; 3]; 3]) -> f64 {
 /// moves and the flips made; stops between sweeps when `control` is
 /// cancelled.
 fn cover(
-    projector: &Projector<'_>,
-    fixed: &[bool],
-    on_sharp: &dyn Fn(u32) -> bool,
+    frame: &Frame<'_>,
     positions: &mut [[f64; 3]],
     faces: &mut [[u32; 3]],
     host: &mut [u32],
     control: &Control<'_>,
 ) -> (usize, usize) {
+    let Frame {
+        projector,
+        fixed,
+        on_sharp,
+    } = *frame;
     let nv = positions.len();
     let (mut moves, mut flips) = (0, 0);
     let mut olds: Vec<([f64; 3], f64)> = Vec::new();
@@ -764,14 +768,17 @@ fn deviation(projector: &Projector<'_>, start: u32, t: [[f64; 3]; 3]) -> f64 {
 /// the flips made; stops between sweeps and every 64 vertices within one
 /// when `control` is cancelled. Same parameters as [`cover`].
 fn mend(
-    projector: &Projector<'_>,
-    fixed: &[bool],
-    on_sharp: &dyn Fn(u32) -> bool,
+    frame: &Frame<'_>,
     positions: &mut [[f64; 3]],
     faces: &mut [[u32; 3]],
     host: &mut [u32],
     control: &Control<'_>,
 ) -> (usize, usize) {
+    let Frame {
+        projector,
+        fixed,
+        on_sharp,
+    } = *frame;
     let nv = positions.len();
     let (mut moves, mut flips) = (0, 0);
     let mut olds: Vec<[f64; 3]> = Vec::new();
@@ -1065,9 +1072,7 @@ mod tests {
 
     /// [`cover`] or [`mend`].
     type Sweeps = fn(
-        &Projector<'_>,
-        &[bool],
-        &dyn Fn(u32) -> bool,
+        &Frame<'_>,
         &mut [[f64; 3]],
         &mut [[u32; 3]],
         &mut [u32],
@@ -1089,15 +1094,12 @@ mod tests {
             topo: &topo,
         };
         let fixed = vec![false; positions.len()];
-        sweeps(
-            &projector,
-            &fixed,
-            &|_| false,
-            positions,
-            faces,
-            host,
-            &Control::new(),
-        )
+        let frame = Frame {
+            projector: &projector,
+            fixed: &fixed,
+            on_sharp: &|_| false,
+        };
+        sweeps(&frame, positions, faces, host, &Control::new())
     }
 
     #[test]
