@@ -363,6 +363,9 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
     // moved the vertices; with 0 sweeps it does not run.
     assert_eq!(stats["smoothing_sweeps"], 100, "{stats}");
     assert!(stats["vertex_moves"].as_u64().unwrap() > 0, "{stats}");
+    // The covering and mending sweeps report their moves (counts).
+    assert!(stats["covering_moves"].is_u64(), "{stats}");
+    assert!(stats["mending_moves"].is_u64(), "{stats}");
     let res = post(
         &app,
         "/v1/mesh/remesh",
@@ -373,6 +376,8 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
     let plain: serde_json::Value = res.json().await.unwrap();
     assert_eq!(plain["stats"]["smoothing_sweeps"], 0, "{plain}");
     assert_eq!(plain["stats"]["vertex_moves"], 0, "{plain}");
+    assert_eq!(plain["stats"]["covering_moves"], 0, "{plain}");
+    assert_eq!(plain["stats"]["mending_moves"], 0, "{plain}");
     let p = problem(
         post(
             &app,
