@@ -15,7 +15,19 @@ use clap::{Args, ValueEnum};
 use super::mesh_distance::{load_mesh_file, One};
 use super::run::{run_operation, FlagMap};
 use crate::io::mesh::write as mesh_write;
-use crate::ops::mesh_remesh::{MeshRemeshRequest, RemeshAdaptationSpec};
+use crate::ops::mesh_remesh::{MeshRemeshRequest, RemeshAdaptationSpec, RemeshSamplingSpec};
+
+/// How `geodex remesh` places its samples.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum SamplingArg {
+    /// Clustered when the input has at least 8 vertices per sample and
+    /// the adaptation is not anisotropic, else exact.
+    Auto,
+    /// Exact farthest-point sampling on the input's vertices.
+    Exact,
+    /// Farthest-point sampling on clusters of vertices, then one front per sample.
+    Clustered,
+}
 
 /// The density of `geodex remesh`.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -58,6 +70,9 @@ pub struct RemeshArgs {
     /// clamped to 20..=100).
     #[arg(long)]
     pub smoothing_iterations: Option<usize>,
+    /// How the samples are placed.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub sampling: SamplingArg,
     /// Where to write the new mesh: `.ply`, `.obj`, `.json` or `.glb` (glTF binary).
     #[arg(long, value_name = "OUT.ply")]
     pub out: PathBuf,
@@ -82,6 +97,11 @@ pub fn run(args: &RemeshArgs) -> Result<(), String> {
         max_ratio: args.max_ratio,
         lloyd_iterations: args.lloyd_iterations,
         smoothing_iterations: args.smoothing_iterations,
+        sampling: match args.sampling {
+            SamplingArg::Auto => RemeshSamplingSpec::Auto,
+            SamplingArg::Exact => RemeshSamplingSpec::Exact,
+            SamplingArg::Clustered => RemeshSamplingSpec::Clustered,
+        },
         hausdorff: true,
     };
     // Every field of the request is spelled as its flag (`max_ratio`: `--max-ratio`).

@@ -19,7 +19,7 @@ use crate::io::ArrayData;
 use crate::numerics::mesh::Topology;
 use crate::numerics::meshing::surface::{
     bounding_diagonal, hausdorff_distance, remesh, Adaptation, RemeshError, RemeshOptions,
-    TopologySummary,
+    Sampling, TopologySummary,
 };
 use crate::numerics::Control;
 
@@ -36,6 +36,23 @@ pub enum RemeshAdaptationSpec {
     /// along the directions of low curvature, by `sqrt(|κ₁| / |κ₂|)` capped
     /// at `max_ratio`.
     Anisotropic,
+}
+
+/// How the samples are placed (step 1 of the remesh).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RemeshSamplingSpec {
+    /// `clustered` when the adaptation is not anisotropic and the input has
+    /// at least 8 vertices per sample, else `exact`.
+    #[default]
+    Auto,
+    /// Exact farthest-point sampling on the input's vertices (a front per
+    /// sample: about `ln count + 0.6` marches over the input).
+    Exact,
+    /// Farthest-point sampling on clusters of about `n / (24 count)`
+    /// vertices, then one front per sample (about one march over the
+    /// input). Not with `adaptation: anisotropic`.
+    Clustered,
 }
 
 /// Request of `mesh.remesh` (`POST /v1/mesh/remesh`, `geodex remesh`).
@@ -81,6 +98,9 @@ pub struct MeshRemeshRequest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(maximum = 100)]
     pub smoothing_iterations: Option<usize>,
+    /// How the samples are placed. Default `auto`.
+    #[serde(default)]
+    pub sampling: RemeshSamplingSpec,
     /// Report the Hausdorff distance to the input. Default true.
     #[serde(default = "yes")]
     pub hausdorff: bool,
@@ -136,6 +156,14 @@ impl Operation for MeshRemeshRequest {
         }
         if self.smoothing_iterations.is_some_and(|k| k > 100) {
             return Err(OpError::invalid("smoothing_iterations", "must be <= 100"));
+        }
+        if self.sampling == RemeshSamplingSpec::Clustered
+            && self.adaptation == RemeshAdaptationSpec::Anisotropic
+        {
+            return Err(OpError::invalid(
+                "sampling",
+                "clustered sampling measures isotropic lengths: use `auto` or `exact` with `adaptation: anisotropic`",
+            ));
         }
         Ok(())
     }
@@ -213,6 +241,11 @@ impl Operation for MeshRemeshRequest {
                 adaptation,
                 lloyd_iterations: self.lloyd_iterations,
                 smoothing_iterations: self.smoothing_iterations,
+                sampling: match self.sampling {
+                    RemeshSamplingSpec::Auto => Sampling::Auto,
+                    RemeshSamplingSpec::Exact => Sampling::Exact,
+                    RemeshSamplingSpec::Clustered => Sampling::Clustered,
+                },
                 ..Default::default()
             },
             control,
@@ -256,6 +289,12 @@ impl Operation for MeshRemeshRequest {
             "target_count": count,
             "added": r.added,
             "repair_rounds": r.repair_rounds,
+            "sampling": {
+                "method": if r.sampled.clustered { "clustered" } else { "exact" },
+                "clusters": r.sampled.clusters,
+                "front_visits": r.sampled.front_visits,
+                "restarted": r.sampled.restarted,
+            },
             "lloyd_energies": r.energies,
             "lloyd_accepted": r.lloyd_accepted,
             "smoothing_sweeps": r.relaxed.sweeps,

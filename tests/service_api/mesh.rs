@@ -378,6 +378,36 @@ async fn remesh_keeps_the_sphere_and_refuses_a_large_count() {
     assert_eq!(plain["stats"]["vertex_moves"], 0, "{plain}");
     assert_eq!(plain["stats"]["covering_moves"], 0, "{plain}");
     assert_eq!(plain["stats"]["mending_moves"], 0, "{plain}");
+    // `auto` samples exactly below 8 input vertices per sample (2,562 for
+    // 400 here); `clustered` is taken as asked, and refused naming
+    // `sampling` under the anisotropic adaptation.
+    assert_eq!(stats["sampling"]["method"], "exact", "{stats}");
+    assert_eq!(stats["sampling"]["clusters"], 0, "{stats}");
+    let res = post(
+        &app,
+        "/v1/mesh/remesh",
+        json!({"mesh": id, "count": 400, "sampling": "clustered"}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let clustered: serde_json::Value = res.json().await.unwrap();
+    let s = &clustered["stats"];
+    assert_eq!(s["sampling"]["method"], "clustered", "{s}");
+    assert!(s["sampling"]["clusters"].as_u64().unwrap() >= 400, "{s}");
+    assert_eq!(s["sampling"]["restarted"], false, "{s}");
+    assert_eq!(s["valid"], true, "{s}");
+    assert_eq!(s["topology_kept"], true, "{s}");
+    let p = problem(
+        post(
+            &app,
+            "/v1/mesh/remesh",
+            json!({"mesh": id, "count": 400, "sampling": "clustered", "adaptation": "anisotropic"}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(p.to_string().contains("sampling"), "{p}");
     let p = problem(
         post(
             &app,

@@ -16,6 +16,7 @@
 //! * [`surface_relax`]: the remesh's last step: edge flips and tangential
 //!   relaxation of its vertices, projected back onto the input surface.
 
+pub mod cluster_sampling;
 pub mod domain;
 pub mod image;
 pub mod image_flips;

@@ -30,7 +30,7 @@
 
 use crate::numerics::mesh::shapes::icosphere;
 use crate::numerics::mesh::TriMesh;
-use crate::numerics::meshing::surface::{remesh, Adaptation, RemeshError, RemeshOptions};
+use crate::numerics::meshing::surface::{remesh, Adaptation, RemeshError, RemeshOptions, Sampling};
 use crate::numerics::Control;
 
 /// A class of articulated shapes.
@@ -363,6 +363,8 @@ pub fn benchmark_shape(
             lloyd_iterations: Some(1),
             max_repairs: 8,
             smoothing_iterations: Some(0),
+            // Exact: the benchmark's shapes stay those it was measured on.
+            sampling: Sampling::Exact,
         },
         control,
     )?
