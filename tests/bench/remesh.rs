@@ -4,6 +4,7 @@
 //! cargo bench --bench remesh -- run 8 10000                 # icosphere level 8 (655,362 vertices) to 10k
 //! cargo bench --bench remesh -- run 8 10000 anisotropic     # uniform | curvature | anisotropic
 //! cargo bench --bench remesh -- run /tmp/scanned/bunny.obj 5000
+//! cargo bench --bench remesh -- run 8 1000 uniform OUT.ply default default exact   # [OUT] [sweeps] [lloyd] [sampling]
 //! cargo bench --bench remesh -- dump 7 /tmp/ico7.ply        # the icosphere for the Python peers
 //! cargo bench --bench remesh -- measure IN.ply OUT.ply      # Hausdorff / diagonal and angle quality
 //! ```
@@ -24,7 +25,8 @@ use geodex::io::mesh::{read_mesh, MeshFormat, MeshLimits};
 use geodex::numerics::mesh::shapes::icosphere;
 use geodex::numerics::mesh::TriMesh;
 use geodex::numerics::meshing::surface::{
-    bounding_diagonal, hausdorff_distance, remesh, Adaptation, RemeshOptions, TopologySummary,
+    bounding_diagonal, hausdorff_distance, remesh, Adaptation, RemeshOptions, Sampling,
+    TopologySummary,
 };
 use geodex::numerics::Control;
 
@@ -112,7 +114,15 @@ fn main() {
                 adaptation,
                 ..Default::default()
             };
-            if let Some(k) = args.get(6) {
+            if let Some(s) = args.get(7) {
+                options.sampling = match s.as_str() {
+                    "auto" => Sampling::Auto,
+                    "exact" => Sampling::Exact,
+                    "clustered" => Sampling::Clustered,
+                    other => panic!("unknown sampling {other}"),
+                };
+            }
+            if let Some(k) = args.get(6).filter(|k| *k != "default") {
                 options.lloyd_iterations = Some(k.parse().expect("lloyd iterations"));
             }
             if let Some(k) = args.get(5).filter(|k| *k != "default") {
@@ -136,6 +146,14 @@ fn main() {
             q["input_topology"] = format!("{:?}", r.input_topology).into();
             q["output_topology"] = format!("{:?}", r.output_topology).into();
             q["lloyd_accepted"] = r.lloyd_accepted.into();
+            q["sampling"] = if r.sampled.clustered {
+                "clustered"
+            } else {
+                "exact"
+            }
+            .into();
+            q["clusters"] = r.sampled.clusters.into();
+            q["front_visits"] = r.sampled.front_visits.into();
             q["flips"] = r.relaxed.flips.into();
             q["moves"] = r.relaxed.moves.into();
             q["moves_rejected"] = r.relaxed.rejected.into();
