@@ -828,8 +828,8 @@ fn exact_sampling(
 /// about one march over the input where a single multi-source march
 /// from all the samples, its front spread over the whole mesh at once,
 /// is several times slower for the cache misses. A vertex no front reached
-/// (the bound was below the marched distance there) makes it start again
-/// with that single march. Returns the cells, the fronts' vertex visits and
+/// although its bound is finite (the bound was below the marched distance
+/// there) makes it start again with that single march. Returns the cells, the fronts' vertex visits and
 /// whether it started again.
 fn cells_from_bound(
     work: &mut MarchWork,
@@ -870,7 +870,13 @@ fn cells_from_bound(
             control,
         )?;
     }
-    let restarted = field.labels.contains(&-1);
+    // Unreached with a finite bound: the bound was too low there. (An
+    // infinite bound is a component without a sample: unreached anyway.)
+    let restarted = field
+        .labels
+        .iter()
+        .zip(&field.distance)
+        .any(|(&l, d)| l < 0 && d.is_finite());
     if restarted {
         field.distance.fill(f64::INFINITY);
         field.labels.fill(-1);
@@ -1849,6 +1855,51 @@ mod tests {
         .expect("fronts");
         assert!(restarted);
         assert_eq!(z, one);
+    }
+
+    /// Fewer samples than components: the components without one keep
+    /// `+inf` and label -1, as under exact sampling, without a restart.
+    #[test]
+    fn components_without_a_sample_stay_unreached() {
+        let sphere = icosphere(3, 1.0);
+        let ns = sphere.num_vertices() as u32;
+        let mut positions = Vec::new();
+        let mut faces = Vec::new();
+        for c in 0..6u32 {
+            positions.extend(
+                sphere
+                    .positions()
+                    .iter()
+                    .map(|p| [p[0] + 5.0 * c as f64, p[1], p[2]]),
+            );
+            faces.extend(sphere.faces().iter().map(|f| f.map(|v| v + c * ns)));
+        }
+        let mesh = TriMesh::from_parts_unchecked(positions, faces);
+        let n = mesh.num_vertices();
+        let topo = Topology::new(&mesh);
+        let prep = MarchPrep::new(&mesh, &topo);
+        let graph = VertexGraph::new(&mesh);
+        let c = cluster_sampling(&mesh, &graph, None, 4, &Control::new()).expect("sampling");
+        let mut hit: Vec<u32> = c.samples.iter().map(|&v| v / ns).collect();
+        hit.sort_unstable();
+        hit.dedup();
+        assert_eq!(hit.len(), 4, "one sample in each of four components");
+        let (f, _, restarted) = cells_from_bound(
+            &mut MarchWork::new(n),
+            &mesh,
+            &prep,
+            &c.samples,
+            c.bound,
+            Metric::Weights(None),
+            &Control::new(),
+        )
+        .expect("fronts");
+        assert!(!restarted);
+        for v in 0..n {
+            let sampled = hit.contains(&(v as u32 / ns));
+            assert_eq!(f.labels[v] >= 0, sampled, "vertex {v}");
+            assert_eq!(f.distance[v].is_finite(), sampled, "vertex {v}");
+        }
     }
 
     #[test]
