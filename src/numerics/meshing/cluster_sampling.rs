@@ -374,11 +374,10 @@ impl Ord for Ordered {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::numerics::mesh::fast_marching::{march_metric, MarchPrep, MarchWork, Metric};
+    use crate::numerics::mesh::fast_marching::{MarchPrep, MarchWork, Metric};
     use crate::numerics::mesh::shapes::icosphere;
-    use crate::numerics::mesh::sources::Seed;
-    use crate::numerics::mesh::{MeshDistance, Topology};
-    use crate::numerics::meshing::surface::spatially_ordered;
+    use crate::numerics::mesh::Topology;
+    use crate::numerics::meshing::surface::{spatially_ordered, voronoi};
 
     /// Section 4.2's covering bound, on the clusters: the fast-marching
     /// covering radius of `k` samples on the unit sphere is within 1.5x of
@@ -399,28 +398,12 @@ mod tests {
             let c = cluster_sampling(&mesh, &graph, None, k, &Control::new()).unwrap();
             assert_eq!(c.samples.len(), k);
             assert!(c.clusters >= k && c.clusters <= n);
-            let seeds: Vec<Seed> = c
-                .samples
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| Seed {
-                    vertex: v,
-                    distance: 0.0,
-                    label: i as i32,
-                })
-                .collect();
-            let mut d = MeshDistance {
-                distance: vec![f64::INFINITY; n],
-                labels: vec![-1; n],
-            };
-            march_metric(
+            let d = voronoi(
                 &mut MarchWork::new(n),
                 &mesh,
                 &prep,
-                &seeds,
+                &c.samples,
                 Metric::Weights(None),
-                f64::INFINITY,
-                &mut d,
                 &Control::new(),
             )
             .unwrap();

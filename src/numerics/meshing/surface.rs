@@ -1213,8 +1213,9 @@ fn lloyd_step(mesh: &TriMesh, field: &MeshDistance, areas: &[f64], k: usize) -> 
     best.iter().map(|b| b.0).collect()
 }
 
-/// The Voronoi cells of `samples` (labels index `samples`).
-fn voronoi(
+/// The Voronoi cells of `samples` (labels index `samples`): one
+/// multi-source march.
+pub(super) fn voronoi(
     work: &mut MarchWork,
     mesh: &TriMesh,
     prep: &MarchPrep,
@@ -1775,31 +1776,7 @@ mod tests {
         let c = cluster_sampling(&mesh, &graph, None, 200, &Control::new()).expect("sampling");
         let w = Metric::Weights(None);
         let mut work = MarchWork::new(n);
-        let mut one = MeshDistance {
-            distance: vec![f64::INFINITY; n],
-            labels: vec![-1; n],
-        };
-        let seeds: Vec<Seed> = c
-            .samples
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| Seed {
-                vertex: v,
-                distance: 0.0,
-                label: i as i32,
-            })
-            .collect();
-        march_metric(
-            &mut work,
-            &mesh,
-            &prep,
-            &seeds,
-            w,
-            f64::INFINITY,
-            &mut one,
-            &Control::new(),
-        )
-        .expect("march");
+        let one = voronoi(&mut work, &mesh, &prep, &c.samples, w, &Control::new()).expect("march");
         let radius = one.distance.iter().copied().fold(0.0, f64::max);
         let (f, visits, restarted) = cells_from_bound(
             &mut work,
