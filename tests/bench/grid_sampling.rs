@@ -12,6 +12,12 @@
 //! use) and second order (the default); the sampler starts from the same
 //! centre cell as a seed. Each repeat runs the three in turn, so drift of
 //! the machine hits all of them alike.
+//!
+//! An experiment follows in each repeat (`coarse-2`, `coarse-3`, `coarse-4`):
+//! exact sampling on a grid coarser by that factor, the samples moved to
+//! the centres of their blocks, then one multi-source first-order map on
+//! the fine grid; it prints the time and the covering radius
+//! (tests/bench/README.md, "farthest points on a coarser grid").
 
 use std::time::Instant;
 
