@@ -1394,3 +1394,49 @@ fn shape_embed_and_isomap_write_their_outputs() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("--k"), "{err}");
 }
+
+#[test]
+fn sample_takes_the_sampling_method() {
+    let dir = TempDir::new().unwrap();
+    let out = path(&dir, "u.npy");
+    let stats = path(&dir, "s.json");
+    for (method, block) in [("clustered", Some(3u64)), ("exact", None)] {
+        let o = geodex(&[
+            "sample",
+            "--shape",
+            "90,96",
+            "--count",
+            "100",
+            "--sampling",
+            method,
+            "--out",
+            s(&out),
+            "--samples",
+            s(&stats),
+        ]);
+        assert!(o.status.success(), "{o:?}");
+        let doc: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        let sampling = &doc["stats"]["sampling"];
+        assert_eq!(sampling["method"], method, "{doc}");
+        assert_eq!(sampling["block"].as_u64(), block, "{doc}");
+        assert_eq!(doc["samples"].as_array().map(Vec::len), Some(100));
+        let u: ArrayD<f64> = read_npy(&out).unwrap();
+        assert_eq!(u.shape(), &[90, 96]);
+        assert!(u.iter().all(|v| v.is_finite()));
+    }
+    // An unknown method names the flag.
+    let o = geodex(&[
+        "sample",
+        "--shape",
+        "9,9",
+        "--count",
+        "3",
+        "--sampling",
+        "fast",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--sampling"));
+}

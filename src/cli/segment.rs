@@ -41,7 +41,7 @@ use crate::ops::grid_group::GridGroupRequest;
 use crate::ops::grid_mesh::{GridMeshRequest, MeshMetricSpec};
 use crate::ops::grid_offset::{GridOffsetRequest, OffsetMetric, OffsetOperation};
 use crate::ops::grid_plan::GridPlanRequest;
-use crate::ops::grid_sample::GridSampleRequest;
+use crate::ops::grid_sample::{GridSampleRequest, GridSamplingSpec};
 use crate::ops::grid_segment::{GridSegmentRequest, SeedSpec};
 use crate::ops::grid_shading::{AnchorSpec, CameraSpec, DirectionSpec, GridShadingRequest};
 use crate::ops::grid_skeleton::GridSkeletonRequest;
@@ -276,6 +276,22 @@ pub struct SampleArgs {
     /// Where to write the samples and statistics (JSON).
     #[arg(long, value_name = "S.json")]
     pub samples: Option<PathBuf>,
+    /// How the samples are placed.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub sampling: GridSamplingArg,
+}
+
+/// How `geodex sample` places its samples.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum GridSamplingArg {
+    /// Clustered for 64 samples or more on a cost without walls that
+    /// varies little within blocks of 3 cells, else exact.
+    Auto,
+    /// Each sample is the cell farthest from the previous ones.
+    Exact,
+    /// Farthest points on blocks of 3 (or 2) cells per axis, then one front
+    /// per sample (not with --tensor).
+    Clustered,
 }
 
 /// Flags of `geodex group`.
@@ -933,10 +949,16 @@ pub fn run_sample(args: &SampleArgs) -> Result<(), SegmentCliError> {
         count: args.count,
         radius: args.radius,
         seeds: Vec::new(),
+        sampling: match args.sampling {
+            GridSamplingArg::Auto => GridSamplingSpec::Auto,
+            GridSamplingArg::Exact => GridSamplingSpec::Exact,
+            GridSamplingArg::Clustered => GridSamplingSpec::Clustered,
+        },
     };
     let flags = grid_flags()
         .field("count", "--count")
         .field("radius", "--radius")
+        .field("sampling", "--sampling")
         .metric(cost_flag(&args.cost));
     let (out, secs) = execute(&request, &inputs, None, &flags)?;
     save(&out, "distance", "--out", &Some(args.out.clone()))?;

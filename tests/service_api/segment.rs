@@ -330,6 +330,41 @@ async fn sample_places_farthest_points_with_their_voronoi_cells() {
         assert_eq!(l[i], k as i32);
     }
     assert!(l.iter().all(|&v| (0..12).contains(&v)));
+    // 12 samples are too few to cluster under auto.
+    assert_eq!(body["stats"]["sampling"]["method"], "exact", "{body}");
+    // Clustered when asked: blocks of 3 cells, the seed kept first, every
+    // cell labelled, the radius the map's largest value.
+    let res = post(
+        &app,
+        "/v1/grid/sample",
+        json!({"cost": {"constant": 1.0, "shape": [90, 96]}, "count": 100, "seeds": [[3, 4]], "sampling": "clustered"}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let body: serde_json::Value = res.json().await.expect("json");
+    let sampling = &body["stats"]["sampling"];
+    assert_eq!(sampling["method"], "clustered", "{body}");
+    assert_eq!(sampling["block"], 3, "{body}");
+    assert_eq!(sampling["coarse_cells"], 30 * 32, "{body}");
+    assert_eq!(body["samples"][0], json!([3, 4]));
+    assert_eq!(body["samples"].as_array().map(Vec::len), Some(100));
+    let d = npy_f64(&app, &body["distance"]).await;
+    let l = npy_i32(&app, &body["labels"]).await;
+    assert!(l.iter().all(|&v| (0..100).contains(&v)));
+    let max = d.iter().copied().fold(0.0, f64::max);
+    assert_eq!(Some(max), body["stats"]["covering_radius"].as_f64());
+    // Within 15 % of exact sampling's covering radius.
+    let res = post(
+        &app,
+        "/v1/grid/sample",
+        json!({"cost": {"constant": 1.0, "shape": [90, 96]}, "count": 100, "seeds": [[3, 4]], "sampling": "exact"}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let exact: serde_json::Value = res.json().await.expect("json");
+    assert_eq!(exact["stats"]["sampling"]["method"], "exact");
+    let r = exact["stats"]["covering_radius"].as_f64().expect("radius");
+    assert!(max <= 1.15 * r, "{max} against exact {r}");
     // The same request runs as a job (one registry line).
     assert!(geodex::ops::registry::find("grid.sample").is_some());
 }
@@ -383,6 +418,18 @@ async fn sample_refuses_bad_counts_and_seeds_naming_the_field() {
     )
     .await;
     assert_eq!(v["field"], "metric", "{v}");
+    // Clustered sampling needs an isotropic cost.
+    let v = problem(
+        post(
+            &app,
+            "/v1/grid/sample",
+            json!({"metric": metric, "count": 4, "sampling": "clustered"}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(v["field"], "sampling", "{v}");
     let v = problem(
         post(&app, "/v1/grid/sample", json!({"count": 4})).await,
         422,

@@ -508,6 +508,21 @@ pub(super) fn first_order<const A: usize>(
     u: &[f64],
     one_axis: impl Fn(usize) -> f64,
 ) -> Option<f64> {
+    first_order_by::<A>(st, i, idx, w, |j| u[j], one_axis)
+}
+
+/// [`first_order`] with the neighbours' values read through `u` (`+inf`
+/// for a neighbour that is not known): the farthest-point sampler masks
+/// the cells no front has labelled, and the cells of other labels.
+#[inline(always)]
+pub(crate) fn first_order_by<const A: usize>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    w: f64,
+    u: impl Fn(usize) -> f64,
+    one_axis: impl Fn(usize) -> f64,
+) -> Option<f64> {
     // Per axis slot: the smaller known neighbour value `b` (+inf when the
     // axis has none), `c²`, `h` and the axis. Fixed slots with constant
     // indices (no compaction, a sorting network instead of an insertion
@@ -522,11 +537,17 @@ pub(super) fn first_order<const A: usize>(
         let s = st.strides[k];
         // `<` is false for NaN and +inf: unknown neighbours drop out.
         let mut a = f64::INFINITY;
-        if idx[k] > 0 && u[i - s] < a {
-            a = u[i - s];
+        if idx[k] > 0 {
+            let v = u(i - s);
+            if v < a {
+                a = v;
+            }
         }
-        if idx[k] + 1 < st.shape[k] && u[i + s] < a {
-            a = u[i + s];
+        if idx[k] + 1 < st.shape[k] {
+            let v = u(i + s);
+            if v < a {
+                a = v;
+            }
         }
         b[slot] = a;
         c[slot] = st.inv_h2[k];
@@ -1019,7 +1040,7 @@ fn solve_slots<const A: usize>(
 /// The first-order root with one axis, `√(c_k² W²) / c_k²` with
 /// `c_k² = 1/h_k²` (as [`first_order`] and `solve_terms` compute it).
 #[inline(always)]
-pub(super) fn one_axis_root(st: &Stencil, k: usize, w: f64) -> f64 {
+pub(crate) fn one_axis_root(st: &Stencil, k: usize, w: f64) -> f64 {
     let c2 = st.inv_h2[k];
     (c2 * (w * w)).sqrt() / c2
 }

@@ -75,7 +75,8 @@ use crate::numerics::sampling::delaunay::{
     geodesic_delaunay, geodesic_delaunay_tensor, DelaunayError, DelaunayOptions, RepairCounts,
 };
 use crate::numerics::sampling::{
-    farthest_point_sampling, tensor_farthest_point_sampling, SamplingError, SamplingOptions,
+    farthest_point_sampling, tensor_farthest_point_sampling, SamplingError, SamplingMethod,
+    SamplingOptions,
 };
 
 /// The metric derived from the image.
@@ -443,6 +444,7 @@ pub fn mesh_image(
             count: Some(count.max(4)),
             radius: None,
             seeds: corners.clone(),
+            method: SamplingMethod::Exact,
         };
         let options = DelaunayOptions {
             conforming: true,

@@ -482,6 +482,7 @@ fn repair<F: Front>(
                 covering_radius,
                 stop: SamplingStop::Count,
                 visited: visited + front,
+                clustered: None,
             };
             return Ok(GeodesicDelaunay {
                 sampling,

@@ -194,6 +194,7 @@ pub fn lloyd(
             covering_radius,
             stop: SamplingStop::Count,
             visited,
+            clustered: None,
         },
         energies,
         moved,

@@ -48,7 +48,9 @@
 //! the values carry the usual `O(h |log h|)` error of the point source,
 //! which is small against cells of tens of grid steps.
 
-use super::farthest::{check_options, sample_with, Front, GridSampling, SamplingError};
+use super::farthest::{
+    check_options, sample_with, Front, GridSampling, SamplingError, SamplingMethod,
+};
 use super::farthest_cell::FarthestCell;
 use super::SamplingOptions;
 use crate::numerics::anisotropic::fast_marching::first_order_update;
@@ -97,6 +99,11 @@ pub fn tensor_farthest_point_sampling(
     control: &Control<'_>,
 ) -> Result<GridSampling, SamplingError> {
     check_options(options, grid.len())?;
+    if options.method == SamplingMethod::Clustered {
+        return Err(SamplingError::Method(
+            "clustered sampling needs an isotropic cost: under a tensor metric use exact or auto",
+        ));
+    }
     if metric.ndim() != grid.ndim() {
         return Err(SamplingError::Dimension {
             field: metric.ndim(),

@@ -44,7 +44,9 @@ use super::mds::{classical_mds, landmark_mds, principal_axes, Embedding, PairSta
 use super::ShapeError;
 use crate::numerics::eikonal::{self, EikonalError, EikonalOptions, EikonalProblem, Order, Source};
 use crate::numerics::metric::{CostValues, Interpretation};
-use crate::numerics::sampling::{farthest_point_sampling, SamplingError, SamplingOptions};
+use crate::numerics::sampling::{
+    farthest_point_sampling, SamplingError, SamplingMethod, SamplingOptions,
+};
 use crate::numerics::{Control, Grid, IsotropicCost};
 
 /// Inner-distance rows of a mask.
@@ -176,6 +178,7 @@ pub fn mask_rows(
                     count: Some(k),
                     radius: None,
                     seeds: Vec::new(),
+                    method: SamplingMethod::Exact,
                 },
                 &inner,
             )
