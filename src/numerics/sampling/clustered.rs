@@ -345,11 +345,11 @@ pub(crate) fn clustered_sampling(
             let row =
                 (i0 / block) * blocks.coarse_strides[0] + (i1 / block) * blocks.coarse_strides[1];
             let o01 = offset2[0][i0] + offset2[1][i1];
-            for i2 in 0..shape[2] {
+            for (i2, o2) in offset2[2].iter().enumerate() {
                 let c = row + i2 / block;
                 let uc = coarse.distance[c];
                 if uc < f64::INFINITY && !cost.is_wall(i) {
-                    let r = (o01 + offset2[2][i2]).sqrt();
+                    let r = (o01 + o2).sqrt();
                     bound[i] = (1.0 + SLACK) * uc + coarse_cost.at(c) * (r + DELTA * h);
                 }
                 i += 1;
