@@ -27,7 +27,8 @@
 //! recomputed with the first-order upwind update of
 //! [`crate::numerics::eikonal`] (the general update with labels, the one the
 //! multi-source fast marching uses, applied to the current values: a cell
-//! with a finite `U` is known) and enters the band only if the new value is
+//! a front has labelled is known; its arithmetic is the first-order
+//! kernel's, `first_order_by`) and enters the band only if the new value is
 //! below its current `U` (by more than a relative `1e-12`, so that rounding
 //! does not reopen cells). The march stops when the band is empty: it visits
 //! the cells whose value decreases and their neighbours, not the grid. The
@@ -47,6 +48,13 @@
 //! scanned once when the front ends, `O(64 + log n)` per chunk touched
 //! instead of a heap sift per visited cell. Sampling `k` points of a grid of
 //! `n` cells visits about `n log k` cells in all on a well-spread set.
+//!
+//! # Clustered sampling
+//!
+//! [`SamplingMethod::Clustered`] trades the exact farthest cell for speed:
+//! farthest points on the grid of blocks of cells, then one front per
+//! sample from the coarse map's bound (`super::clustered`), about 2.5 full
+//! maps instead of 10 for `10⁴` samples on a 1024² grid.
 //!
 //! # Conventions
 //!
@@ -130,7 +138,10 @@ pub struct GridSampling {
     pub distance: Vec<f64>,
     /// Index in `samples` of the nearest sample per cell, `-1` where not reached.
     pub labels: Vec<i32>,
-    /// `radii[k]`: the covering radius (largest finite `U`) after `k + 1` samples.
+    /// `radii[k]`: the covering radius (largest finite `U`) after `k + 1`
+    /// samples. Under [`SamplingMethod::Clustered`] the entries of the coarse
+    /// samples are the coarse grid's radii, except the last of them, which is
+    /// the grid's (so they may rise once there).
     pub radii: Vec<f64>,
     /// The final covering radius (the last of `radii`).
     pub covering_radius: f64,
