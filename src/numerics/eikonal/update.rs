@@ -331,20 +331,7 @@ pub(crate) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
     cost: &IsotropicCost<'_>,
 ) -> Option<(f64, i32)> {
     if multi {
-        // The distinct labels of the known axis neighbours.
-        let mut ls = [0i32; 6];
-        let mut nl = 0;
-        for &k in st.axes_as::<A>() {
-            let s = st.strides[k];
-            let lo = (idx[k] > 0).then(|| i - s);
-            let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
-            for j in [lo, hi].into_iter().flatten() {
-                if known(j) && !ls[..nl].contains(&labels.at(j)) {
-                    ls[nl] = labels.at(j);
-                    nl += 1;
-                }
-            }
-        }
+        let (ls, nl) = neighbour_labels::<A>(st, i, idx, |j| known(j).then(|| labels.at(j)));
         if nl > 1 {
             // Each source's front is continued on its own and the smallest
             // value wins: combining differences of two fronts in one
@@ -373,6 +360,34 @@ pub(crate) fn update<const A: usize, K: Fn(usize) -> bool, L: Labels + ?Sized>(
         }
     }
     update_one::<A, _, _>(st, i, idx, w, u, labels, known, second, factor, cost)
+}
+
+/// The distinct labels of the axis neighbours of cell `i` (padded index
+/// `idx`) in the order met, `label_of(j)` giving a known neighbour's label
+/// (`None` for the others): the labels and how many.
+#[inline(always)]
+pub(crate) fn neighbour_labels<const A: usize>(
+    st: &Stencil,
+    i: usize,
+    idx: [usize; 3],
+    label_of: impl Fn(usize) -> Option<i32>,
+) -> ([i32; 6], usize) {
+    let mut ls = [0i32; 6];
+    let mut nl = 0;
+    for &k in st.axes_as::<A>() {
+        let s = st.strides[k];
+        let lo = (idx[k] > 0).then(|| i - s);
+        let hi = (idx[k] + 1 < st.shape[k]).then(|| i + s);
+        for j in [lo, hi].into_iter().flatten() {
+            if let Some(l) = label_of(j) {
+                if !ls[..nl].contains(&l) {
+                    ls[nl] = l;
+                    nl += 1;
+                }
+            }
+        }
+    }
+    (ls, nl)
 }
 
 /// [`update`] for neighbours that all carry one label (or when labels do not matter).

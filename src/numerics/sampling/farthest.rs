@@ -66,7 +66,7 @@
 
 use super::farthest_cell::FarthestCell;
 use crate::numerics::control::Control;
-use crate::numerics::eikonal::update::{first_order_by, one_axis_root, Stencil};
+use crate::numerics::eikonal::update::{first_order_by, neighbour_labels, one_axis_root, Stencil};
 use crate::numerics::grid::Grid;
 use crate::numerics::heap::{IndexedHeap, ABSENT, FIRST_TAG};
 use crate::numerics::metric::IsotropicCost;
@@ -719,20 +719,10 @@ fn label_update<const A: usize>(
     u: &[f64],
     labels: &[i32],
 ) -> Option<(f64, i32)> {
-    let mut ls = [0i32; 6];
-    let mut nl = 0;
-    for &k in st.axes_as::<A>() {
-        let s = st.strides[k];
-        let lo = (jdx[k] > 0).then(|| j - s);
-        let hi = (jdx[k] + 1 < st.shape[k]).then(|| j + s);
-        for x in [lo, hi].into_iter().flatten() {
-            let l = labels[x];
-            if l >= 0 && !ls[..nl].contains(&l) {
-                ls[nl] = l;
-                nl += 1;
-            }
-        }
-    }
+    let (ls, nl) = neighbour_labels::<A>(st, j, jdx, |x| {
+        let l = labels[x];
+        (l >= 0).then_some(l)
+    });
     let (w, roots) = match uniform {
         Some((w, roots)) => (w, Some(roots)),
         None => (cost.at(j), None),
