@@ -592,7 +592,7 @@ fn defects(
         }
     }
     // Cells in several pieces.
-    for (label, pieces) in split_cells(shape, labels, cells.len()) {
+    for (label, pieces) in split_cells(shape, labels, cells) {
         counts.split_cell += 1;
         out.push(Region {
             cells: vec![label],
@@ -675,9 +675,16 @@ fn defects(
 }
 
 /// Labels whose cells are in several 4-connected pieces, with the grid
-/// cells of every piece but the largest.
-fn split_cells(shape: [usize; 2], labels: &[i32], count: usize) -> Vec<(u32, Vec<usize>)> {
+/// cells of every piece but the one holding the sample (`cells[label]`).
+///
+/// The sample's own piece stays even when it is the smallest: where the
+/// metric varies fast, the sample's grid cell can be cut off from the rest
+/// of its Voronoi cell, and the repair sample then goes to the farthest
+/// cell of that rest (a piece of the sample's cell alone has no cell with
+/// `U > 0` to take it).
+fn split_cells(shape: [usize; 2], labels: &[i32], cells: &[usize]) -> Vec<(u32, Vec<usize>)> {
     let [n0, n1] = shape;
+    let count = cells.len();
     let mut piece = vec![u32::MAX; labels.len()];
     let mut pieces_of: Vec<Vec<Vec<usize>>> = vec![Vec::new(); count];
     let mut stack = Vec::new();
@@ -717,9 +724,47 @@ fn split_cells(shape: [usize; 2], labels: &[i32], count: usize) -> Vec<(u32, Vec
     let mut out = Vec::new();
     for (l, mut pieces) in pieces_of.into_iter().enumerate() {
         if pieces.len() > 1 {
-            pieces.sort_by_key(|p| std::cmp::Reverse(p.len()));
-            out.push((l as u32, pieces.into_iter().skip(1).flatten().collect()));
+            let own = pieces.iter().position(|p| p.contains(&cells[l]));
+            let keep = own.unwrap_or_else(|| {
+                (0..pieces.len())
+                    .max_by_key(|&k| (pieces[k].len(), std::cmp::Reverse(k)))
+                    .unwrap_or(0)
+            });
+            pieces.swap_remove(keep);
+            out.push((l as u32, pieces.into_iter().flatten().collect()));
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split_cells;
+
+    /// A sample cut off from the rest of its Voronoi cell keeps its own
+    /// piece, even the smallest, so that the repair targets the rest (cells
+    /// with `U > 0`), not the sample itself.
+    #[test]
+    fn a_split_cell_keeps_the_piece_holding_its_sample() {
+        // 3 x 5 grid; label 0 holds the sample at cell 0 alone and the
+        // block of columns 2-4; label 1 fills column 1 between them.
+        #[rustfmt::skip]
+        let labels = [
+            0, 1, 0, 0, 0,
+            1, 1, 0, 0, 0,
+            1, 1, 0, 0, 0,
+        ];
+        let cells = [0, 6];
+        let split = split_cells([3, 5], &labels, &cells);
+        assert_eq!(split.len(), 1);
+        let (label, mut pieces) = split[0].clone();
+        pieces.sort_unstable();
+        assert_eq!(label, 0);
+        assert_eq!(pieces, vec![2, 3, 4, 7, 8, 9, 12, 13, 14]);
+        // With the sample in the larger piece, the single cell is the rest.
+        let split = split_cells([3, 5], &labels, &[3, 6]);
+        assert_eq!(split, vec![(0, vec![0])]);
+        // A cell in one piece is not split.
+        assert!(split_cells([3, 5], &[0; 15], &[7]).is_empty());
+    }
 }
