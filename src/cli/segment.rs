@@ -362,6 +362,9 @@ pub enum MeshMetricArg {
     AnisotropicHessian,
     /// Anisotropic: Id + strength J / max from the structure tensor J.
     StructureTensor,
+    /// Anisotropic with the gradient metric's density, elongated along the
+    /// structure tensor's edges.
+    EdgeTensor,
 }
 
 /// Flags of `geodex mesh`.
@@ -383,10 +386,11 @@ pub struct MeshArgs {
     /// largest |λ| over the floor of every |λ|).
     #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
     pub strength: f64,
-    /// Anisotropic metrics: largest length-to-width ratio of an element.
-    #[arg(long, default_value_t = 8.0, allow_negative_numbers = true)]
-    pub anisotropy: f64,
-    /// structure-tensor: integration scale.
+    /// Anisotropic metrics: largest length-to-width ratio of an element
+    /// [default: 8; edge-tensor: 1.5].
+    #[arg(long, allow_negative_numbers = true)]
+    pub anisotropy: Option<f64>,
+    /// structure-tensor, edge-tensor: integration scale.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub rho: f64,
     /// Skip the uniform mesh of the same vertex count.
@@ -1155,6 +1159,7 @@ pub fn run_mesh(args: &MeshArgs) -> Result<(), SegmentCliError> {
             MeshMetricArg::Hessian => MeshMetricSpec::Hessian,
             MeshMetricArg::AnisotropicHessian => MeshMetricSpec::AnisotropicHessian,
             MeshMetricArg::StructureTensor => MeshMetricSpec::StructureTensor,
+            MeshMetricArg::EdgeTensor => MeshMetricSpec::EdgeTensor,
         },
         sigma: args.sigma,
         strength: args.strength,

@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Image-meshing quality on scikit-image's `camera` (512x512): the L2 error of
 the piecewise-linear approximation on a uniform, a gradient-adapted, a
-Hessian-adapted (isotropic) and two anisotropic (absolute Hessian
-det^(-1/6)|H|, structure tensor) geodesic Delaunay meshes with the same
-vertex count; with `--flips`, each also after data-dependent edge flips;
+Hessian-adapted (isotropic) and three anisotropic (absolute Hessian
+det^(-1/6)|H|, structure tensor, and the edge tensor: the gradient metric's
+density with elements stretched along the structure tensor's coherent edges)
+geodesic Delaunay meshes with the same vertex count; with `--flips`, each also after data-dependent edge flips;
 with `--moves`, each also after vertex moves and flips (`geodex mesh --moves`).
 
 Needs a venv with scikit-image and numpy (the image only) and a geodex binary:
@@ -40,7 +41,7 @@ def main():
     ap.add_argument("--moves", action="store_true",
                     help="also run every metric with vertex moves and flips (`geodex mesh --moves`)")
     ap.add_argument("--metrics", default=None,
-                    help="comma-separated subset of the metrics (default: all five)")
+                    help="comma-separated subset of the metrics (default: all six)")
     args = ap.parse_args()
     image = data.camera().astype(np.float64) / 255.0
     rows = []
@@ -55,7 +56,10 @@ def main():
                 ("gradient", args.sigma, args.strength, []),
                 ("hessian", args.sigma, args.strength, []),
                 ("anisotropic-hessian", 1.0, 20.0, ["--anisotropy", "8"]),
-                ("structure-tensor", 1.0, 32.0, ["--anisotropy", "4", "--rho", "1"])]
+                ("structure-tensor", 1.0, 32.0, ["--anisotropy", "4", "--rho", "1"]),
+                # The gradient metric's density (same sigma and strength as
+                # the isotropic rows), elements stretched along coherent edges.
+                ("edge-tensor", args.sigma, args.strength, ["--anisotropy", "2", "--rho", "2"])]
         if args.metrics:
             keep = args.metrics.split(",")
             runs = [r for r in runs if r[0] in keep]

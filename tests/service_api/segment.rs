@@ -615,6 +615,21 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
         "{m}"
     );
     assert_eq!(stats["moves"], 0, "{stats}");
+    // The edge tensor (the gradient mesh's density, elements long along
+    // the disc's edge; default anisotropy 1.5) is a valid mesh of the same
+    // size whose error is below the gradient mesh's.
+    let res = post(
+        &app,
+        "/v1/grid/mesh",
+        json!({"dataset": id, "count": 80, "metric": "edge_tensor"}),
+    )
+    .await;
+    assert_eq!(res.status(), 200);
+    let edge: serde_json::Value = res.json().await.expect("json");
+    let g = &edge["stats"];
+    let ng = g["vertices"].as_u64().expect("vertices") as usize;
+    assert!(ng.abs_diff(80) <= 8, "{g}");
+    assert!(g["l2_error"].as_f64().expect("e") < e, "{g} vs {e}");
 }
 
 #[tokio::test]
@@ -633,6 +648,10 @@ async fn mesh_refuses_bad_counts_and_images_naming_the_field() {
         (
             json!({"dataset": id, "count": 10, "spacing": [1.0, 0.0]}),
             "spacing[1]",
+        ),
+        (
+            json!({"dataset": id, "count": 10, "metric": "edge_tensor", "anisotropy": 0.5}),
+            "anisotropy",
         ),
     ] {
         let v = problem(post(&app, "/v1/grid/mesh", body).await, 422).await;
