@@ -492,14 +492,15 @@ async fn mesh_returns_an_image_mesh_with_its_error_beside_the_uniform_one() {
     let nv = stats["vertices"].as_u64().expect("vertices") as usize;
     let nt = stats["triangles"].as_u64().expect("triangles") as usize;
     assert!(nv.abs_diff(80) <= 8, "{stats}");
-    // The uniform mesh's second sampling pass undershoots its border
-    // repair (measured: 66 vertices for a target of 80).
+    // The uniform mesh's border repair adds a fifth of its samples; the
+    // count search still lands near the target (measured: 78; the first
+    // retry alone gave 66).
     assert!(
         stats["uniform"]["vertices"]
             .as_u64()
             .expect("uniform")
             .abs_diff(80)
-            <= 16,
+            <= 4,
         "{stats}"
     );
     let (e, u) = (

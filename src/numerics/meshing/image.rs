@@ -448,9 +448,10 @@ impl From<TensorError> for MeshingError {
 
 /// Meshes `image` (one value per cell of the 2D `grid`, C order) with about
 /// `options.count` vertices; see the module docs. The repair of the
-/// triangulation adds border samples; the sampling is run a second time
-/// with fewer samples when it did, so that the vertex count is close to the
-/// target.
+/// triangulation adds samples (on the border, and where the metric turns
+/// fast); the sampling is then run again with fewer samples (at most five
+/// more times, interpolating the vertex count between requests), keeping
+/// the mesh whose vertex count is closest to the target.
 ///
 /// Polls `control` throughout (filters, sampling, repair).
 pub fn mesh_image(
@@ -518,13 +519,48 @@ pub fn mesh_image(
             }
         })
     };
-    let mut d = run(options.count)?;
-    if d.added > 0 && options.count > 4 + d.added {
-        let second = run(options.count - d.added)?;
-        let off = |x: usize| x.abs_diff(options.count);
-        if off(second.points.len()) < off(d.points.len()) {
-            d = second;
+    // The repair adds samples: sample fewer so that the vertex count lands
+    // near the target. The first retry asks for `count − added`; further
+    // ones interpolate linearly between the closest requests that gave too
+    // few and too many vertices (or extrapolate from the last two), at most
+    // five retries in all, until the count is within 2 % of the target.
+    let target = options.count;
+    let off = |x: usize| x.abs_diff(target);
+    let mut d = run(target)?;
+    let mut tried = vec![(target, d.points.len())];
+    let mut request = target.saturating_sub(d.added);
+    while d.added > 0
+        && tried.len() <= 5
+        && off(d.points.len()) > (target / 50).max(2)
+        && request >= 4
+        && tried.iter().all(|&(r, _)| r != request)
+    {
+        let next = run(request)?;
+        tried.push((request, next.points.len()));
+        if off(next.points.len()) < off(d.points.len()) {
+            d = next;
         }
+        let below = tried
+            .iter()
+            .filter(|&&(_, v)| v < target)
+            .max_by_key(|&&(_, v)| v);
+        let above = tried
+            .iter()
+            .filter(|&&(_, v)| v > target)
+            .min_by_key(|&&(_, v)| v);
+        let [(r1, v1), (r2, v2)] = match (below, above) {
+            (Some(&lo), Some(&hi)) => [lo, hi],
+            _ => [tried[tried.len() - 2], tried[tried.len() - 1]],
+        };
+        if v1 == v2 || r1 == r2 {
+            break;
+        }
+        let slope = (v2 as f64 - v1 as f64) / (r2 as f64 - r1 as f64);
+        let guess = r1 as f64 + (target as f64 - v1 as f64) / slope;
+        if !(guess.is_finite() && slope > 0.0) {
+            break;
+        }
+        request = guess.round().clamp(4.0, n as f64) as usize;
     }
     let mut values: Vec<f64> = d
         .points
