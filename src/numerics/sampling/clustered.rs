@@ -80,12 +80,17 @@ const BLOCKS: [usize; 2] = [3, 2];
 /// Cancellation is polled, and progress reported, every this many fine fronts.
 const CANCEL_EVERY: usize = 64;
 
+/// Cells between two polls of the flag in the passes over every cell (the
+/// coarse cost, the bound): about a millisecond of work.
+const SCAN_POLL: usize = 1 << 16;
+
 /// The block size the options and the cost call for, `None` for exact
 /// sampling. The options must have passed `check_options`.
 pub(crate) fn block_for(
     grid: &Grid,
     cost: &IsotropicCost<'_>,
     options: &SamplingOptions,
+    control: &Control<'_>,
 ) -> Option<usize> {
     if options.method == SamplingMethod::Exact {
         return None;
@@ -97,7 +102,7 @@ pub(crate) fn block_for(
     let (walls, contrast, w_max) = if cost.is_uniform() {
         (false, 1.0, cost.at(0))
     } else if auto {
-        scan(grid, cost)?
+        scan(grid, cost, control)?
     } else {
         (false, 1.0, cost.max_finite(grid).unwrap_or(1.0))
     };
@@ -126,13 +131,17 @@ pub(crate) fn block_for(
 }
 
 /// Whether the cost has walls, its largest ratio of costs inside a block of
-/// 3 cells per axis, and its largest finite cost.
-fn scan(grid: &Grid, cost: &IsotropicCost<'_>) -> Option<(bool, f64, f64)> {
+/// 3 cells per axis, and its largest finite cost; `None` when a raised flag
+/// stops the scan (the exact sampler then stops at its first poll).
+fn scan(grid: &Grid, cost: &IsotropicCost<'_>, control: &Control<'_>) -> Option<(bool, f64, f64)> {
     let blocks = Blocks::new(grid, 3)?;
     let mut lo = vec![f64::INFINITY; blocks.coarse.len()];
     let mut hi = vec![0.0f64; blocks.coarse.len()];
     let mut walls = false;
     for i in 0..grid.len() {
+        if i % SCAN_POLL == 0 && control.is_cancelled() {
+            return None;
+        }
         let w = cost.at(i);
         if w == f64::INFINITY {
             walls = true;
@@ -250,6 +259,9 @@ pub(crate) fn clustered_sampling(
         let mut sum = vec![0.0f64; nc];
         let mut open = vec![0u32; nc];
         for i in 0..n {
+            if i % SCAN_POLL == 0 && control.is_cancelled() {
+                return Err(SamplingError::Cancelled);
+            }
             let w = cost.at(i);
             if w < f64::INFINITY {
                 let c = blocks.of(i);
@@ -342,6 +354,9 @@ pub(crate) fn clustered_sampling(
     let mut i = 0;
     for i0 in 0..shape[0] {
         for i1 in 0..shape[1] {
+            if i % SCAN_POLL < shape[2] && control.is_cancelled() {
+                return Err(SamplingError::Cancelled);
+            }
             let row =
                 (i0 / block) * blocks.coarse_strides[0] + (i1 / block) * blocks.coarse_strides[1];
             let o01 = offset2[0][i0] + offset2[1][i1];
@@ -558,7 +573,7 @@ mod tests {
             method: SamplingMethod::Clustered,
             ..Default::default()
         };
-        assert_eq!(block_for(&grid, &cost, &options), Some(3));
+        assert_eq!(block_for(&grid, &cost, &options, &Control::new()), Some(3));
         let s = run(&grid, &cost, &options).expect("clustered");
         let report = s.clustered.expect("clustered ran");
         assert!(report.repaired > 0, "{report:?}");
@@ -570,7 +585,7 @@ mod tests {
             method: SamplingMethod::Auto,
             ..options
         };
-        assert_eq!(block_for(&grid, &cost, &auto), None);
+        assert_eq!(block_for(&grid, &cost, &auto, &Control::new()), None);
     }
 
     #[test]
@@ -627,27 +642,78 @@ mod tests {
             method: SamplingMethod::Auto,
             ..Default::default()
         };
-        assert_eq!(block_for(&big, &unit(), &auto(2000)), Some(3));
-        assert_eq!(block_for(&big, &unit(), &auto(5000)), Some(2));
-        assert_eq!(block_for(&big, &unit(), &auto(40_000)), None);
-        assert_eq!(block_for(&big, &unit(), &auto(20)), None);
+        assert_eq!(
+            block_for(&big, &unit(), &auto(2000), &Control::new()),
+            Some(3)
+        );
+        assert_eq!(
+            block_for(&big, &unit(), &auto(5000), &Control::new()),
+            Some(2)
+        );
+        assert_eq!(
+            block_for(&big, &unit(), &auto(40_000), &Control::new()),
+            None
+        );
+        assert_eq!(block_for(&big, &unit(), &auto(20), &Control::new()), None);
         let exact = SamplingOptions {
             method: SamplingMethod::Exact,
             ..auto(2000)
         };
-        assert_eq!(block_for(&big, &unit(), &exact), None);
+        assert_eq!(block_for(&big, &unit(), &exact, &Control::new()), None);
         // A cost that jumps by 4 inside blocks stays exact under auto.
         let v: Vec<f64> = (0..big.len())
             .map(|i| if i % 2 == 0 { 1.0 } else { 4.0 })
             .collect();
         let rough = IsotropicCost::new(&big, CostValues::F64(v.into()), Interpretation::Cost, None)
             .expect("cost");
-        assert_eq!(block_for(&big, &rough, &auto(2000)), None);
+        assert_eq!(block_for(&big, &rough, &auto(2000), &Control::new()), None);
         let clustered = SamplingOptions {
             method: SamplingMethod::Clustered,
             ..auto(2000)
         };
-        assert_eq!(block_for(&big, &rough, &clustered), Some(3));
+        assert_eq!(
+            block_for(&big, &rough, &clustered, &Control::new()),
+            Some(3)
+        );
+    }
+
+    /// The passes over every cell poll the flag: auto's scan gives up
+    /// (exact sampling then stops at its first poll) and the clustered path
+    /// stops in its coarse-cost pass, before any progress.
+    #[test]
+    fn a_raised_flag_stops_the_passes_over_every_cell() {
+        let big = Grid::unit(&[300, 300]).expect("grid");
+        let ramp: Vec<f64> = (0..big.len())
+            .map(|i| 1.0 + (i % 300) as f64 / 300.0)
+            .collect();
+        let cost = IsotropicCost::new(
+            &big,
+            CostValues::F64(ramp.into()),
+            Interpretation::Cost,
+            None,
+        )
+        .expect("cost");
+        let options = SamplingOptions {
+            count: Some(1000),
+            method: SamplingMethod::Auto,
+            ..Default::default()
+        };
+        assert_eq!(block_for(&big, &cost, &options, &Control::new()), Some(3));
+        let flag = AtomicBool::new(true);
+        let raised = Control::new().with_cancel(&flag);
+        assert_eq!(block_for(&big, &cost, &options, &raised), None);
+        let seen = std::sync::atomic::AtomicUsize::new(0);
+        let sink = |_: f64| {
+            seen.fetch_add(1, Ordering::Relaxed);
+        };
+        let control = Control::new().with_cancel(&flag).with_progress(&sink);
+        let clustered = SamplingOptions {
+            method: SamplingMethod::Clustered,
+            ..options
+        };
+        let r = farthest_point_sampling(&big, &cost, &clustered, &control);
+        assert_eq!(r, Err(SamplingError::Cancelled));
+        assert_eq!(seen.load(Ordering::Relaxed), 0);
     }
 
     #[test]

@@ -244,7 +244,7 @@ pub fn farthest_point_sampling(
     control: &Control<'_>,
 ) -> Result<GridSampling, SamplingError> {
     check_options(options, grid.len())?;
-    if let Some(block) = super::clustered::block_for(grid, cost, options) {
+    if let Some(block) = super::clustered::block_for(grid, cost, options, control) {
         return super::clustered::clustered_sampling(grid, cost, options, block, control);
     }
     sample_with(grid, Sampler::new(grid, cost), options, control)
@@ -597,6 +597,9 @@ impl<'a> Sampler<'a> {
     pub(crate) fn settle(&mut self, control: &Control<'_>) -> Result<usize, SamplingError> {
         let mut holes = Vec::new();
         for (i, (u, &l)) in self.u.iter_mut().zip(&self.labels).enumerate() {
+            if i % (16 * CANCEL_EVERY) == 0 && control.is_cancelled() {
+                return Err(SamplingError::Cancelled);
+            }
             if l < 0 && *u < f64::INFINITY {
                 *u = f64::INFINITY;
                 holes.push(i);
