@@ -80,8 +80,8 @@ const BLOCKS: [usize; 2] = [3, 2];
 /// Cancellation is polled, and progress reported, every this many fine fronts.
 const CANCEL_EVERY: usize = 64;
 
-/// Cells between two polls of the flag in the passes over every cell (the
-/// coarse cost, the bound): about a millisecond of work.
+/// Cells between two polls of the flag in the passes over every cell (auto's
+/// scan, the coarse cost, the bound): about a millisecond of work.
 const SCAN_POLL: usize = 1 << 16;
 
 /// The block size the options and the cost call for, `None` for exact
